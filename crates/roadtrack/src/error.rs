@@ -1,0 +1,144 @@
+//! The library's one error type.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in `roadtrack`.
+///
+/// Variants carry the file, line, column or frame that caused them, so the command line can
+/// print a message a user can act on without a backtrace.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A configuration value is outside the range the method supports.
+    #[error("invalid {config}.{field}: {reason}")]
+    InvalidConfig {
+        /// The config struct, e.g. `RelaxationConfig`.
+        config: &'static str,
+        /// The offending field.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A value in a text input file could not be accepted.
+    #[error("{}:{line}: column `{column}`: {message}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number (the header is line 1 in CSV files).
+        line: u64,
+        /// Column name (or 1-based position for header-less formats).
+        column: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file as a whole is malformed (missing header, missing required column, empty).
+    #[error("{}: {message}", path.display())]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A frame source failed at a given frame.
+    #[error("{}: frame {frame}: {message}", path.display())]
+    Frame {
+        /// The source (file or folder).
+        path: PathBuf,
+        /// 1-based frame number.
+        frame: u32,
+        /// What is wrong.
+        message: String,
+    },
+    /// A frame does not have the size of the first frame of its sequence.
+    #[error("frame {frame} is {got:?} px, expected {expected:?} px")]
+    FrameSize {
+        /// 1-based frame number.
+        frame: u32,
+        /// Width and height found.
+        got: (u32, u32),
+        /// Width and height of the first frame.
+        expected: (u32, u32),
+    },
+    /// An external program (ffmpeg, ffprobe) is missing or failed.
+    #[error("{program}: {message}")]
+    External {
+        /// The program.
+        program: &'static str,
+        /// What happened, with the remedy when known.
+        message: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("cannot access {}: {source}", path.display())]
+    Io {
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+        /// The path.
+        path: PathBuf,
+    },
+    /// Encoding or decoding an image failed.
+    #[error("image {}: {source}", path.display())]
+    Image {
+        /// The underlying error.
+        #[source]
+        source: image::ImageError,
+        /// The image file.
+        path: PathBuf,
+    },
+    /// A TOML configuration or scenario file could not be read.
+    #[error("{}: {message}", path.display())]
+    Toml {
+        /// The file.
+        path: PathBuf,
+        /// The TOML parser's message (it names line and column).
+        message: String,
+    },
+    /// The inputs are consistent individually but cannot be used together.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// `Result` with [`Error`] as the default error.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// An [`Error::Io`] for `path`.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            source,
+            path: path.into(),
+        }
+    }
+
+    /// An [`Error::Parse`] for a value in `path` at `line`, `column`.
+    pub fn parse(
+        path: impl Into<PathBuf>,
+        line: u64,
+        column: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Error::Parse {
+            path: path.into(),
+            line,
+            column: column.into(),
+            message: message.into(),
+        }
+    }
+
+    /// An [`Error::Format`] for `path`.
+    pub fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Format {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    /// An [`Error::InvalidConfig`].
+    pub fn config(config: &'static str, field: &'static str, reason: impl Into<String>) -> Self {
+        Error::InvalidConfig {
+            config,
+            field,
+            reason: reason.into(),
+        }
+    }
+}
