@@ -11,6 +11,7 @@ pub mod detection;
 pub mod error;
 pub mod frame;
 pub mod geometry;
+pub mod io;
 pub mod rng;
 pub mod track;
 

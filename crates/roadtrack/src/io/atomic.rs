@@ -1,0 +1,83 @@
+//! Atomic file output: write to a temporary file in the same folder, then rename.
+
+use crate::error::{Error, Result};
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// Writes a file by calling `write` on a buffered writer, atomically.
+///
+/// The data go to a temporary file in the destination's folder (created if missing), which
+/// is flushed, synced and renamed over `path` only when `write` succeeded; on failure the
+/// temporary file is removed and `path` is untouched. The path `-` writes to standard output.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
+    if path.as_os_str() == "-" {
+        let stdout = std::io::stdout();
+        let mut out = BufWriter::new(stdout.lock());
+        write(&mut out)
+            .and_then(|()| out.flush())
+            .map_err(|e| Error::io("<stdout>", e))?;
+        return Ok(());
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let tmp = tempfile::Builder::new()
+        .prefix(".roadtrack-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| Error::io(dir, e))?;
+    let mut out = BufWriter::new(tmp);
+    write(&mut out)
+        .and_then(|()| out.flush())
+        .map_err(|e| Error::io(path, e))?;
+    let tmp = out
+        .into_inner()
+        .map_err(|e| Error::io(path, e.into_error()))?;
+    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic(path, |w| w.write_all(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_the_whole_file() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
+        let p = dir.path().join("sub/out.txt");
+        write_bytes_atomic(&p, b"hello\n")?;
+        assert_eq!(std::fs::read(&p).map_err(|e| Error::io(&p, e))?, b"hello\n");
+        Ok(())
+    }
+
+    #[test]
+    fn failed_write_leaves_old_file_and_no_temporary() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
+        let p = dir.path().join("out.txt");
+        write_bytes_atomic(&p, b"old")?;
+        let r = write_atomic(&p, |w| {
+            w.write_all(b"partial new content")?;
+            Err(std::io::Error::other("interrupted"))
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read(&p).map_err(|e| Error::io(&p, e))?, b"old");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .map_err(|e| Error::io("tmp", e))?
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("out.txt")]);
+        Ok(())
+    }
+}
