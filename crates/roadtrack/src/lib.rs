@@ -6,6 +6,7 @@
 //! - the spatio-temporal MRF model (seed 002),
 //! - particle and labelled SMC-PHD filters with a CNN likelihood (seed 004).
 
+pub mod calibration;
 pub mod class;
 pub mod detection;
 pub mod error;
@@ -13,8 +14,10 @@ pub mod frame;
 pub mod geometry;
 pub mod io;
 pub mod rng;
+pub mod sim;
 pub mod track;
 
+pub use calibration::Calibration;
 pub use class::ObjectClass;
 pub use detection::Detection;
 pub use error::{Error, Result};

@@ -13,7 +13,7 @@ pub mod natural;
 pub mod points;
 pub mod seqinfo;
 pub mod source;
-mod table;
+pub(crate) mod table;
 pub mod trajectories;
 pub mod video;
 
