@@ -153,8 +153,8 @@ pub struct RoadConfig {
     pub lanes: u32,
     /// Lane width, m. Default 3.5.
     pub lane_width_m: f64,
-    /// Mean arrivals at the upstream end (Poisson), vehicles/h over all lanes. Default 1 100,
-    /// which keeps about 47 vehicles on 700 m (seed 000's first frame had 47).
+    /// Mean arrivals at the upstream end (Poisson), vehicles/h over all lanes. Default 3 000,
+    /// which keeps about 48 vehicles on the 700 m (seed 000's frames had 47 and 48).
     pub inflow_veh_per_h: f64,
     /// Speed limit, m/s; drivers' desired speeds scatter around it. Default 16.7 (60 km/h).
     pub speed_limit_mps: f64,
@@ -169,7 +169,7 @@ impl Default for RoadConfig {
             length_m: 700.0,
             lanes: 2,
             lane_width_m: 3.5,
-            inflow_veh_per_h: 1100.0,
+            inflow_veh_per_h: 3000.0,
             speed_limit_mps: 16.7,
             slow_zone: None,
         }

@@ -382,23 +382,28 @@ impl Traffic {
             let cc = self.class_config(&p.class).clone();
             let length = normal(&mut arng, cc.length_m[0], cc.length_m[1]).max(0.5);
             let width = normal(&mut arng, cc.width_m[0], cc.width_m[1]).max(0.3);
+            let vc = &self.config.vehicles;
             let mut placed = None;
             for route in candidates {
                 let s = length / 2.0;
                 if self.follower(usize::MAX, route, s, length).is_some() {
                     continue;
                 }
+                // Insert at the leader's speed (capped by the limit) when the gap is at
+                // least IDM's equilibrium gap s0 + v·T for that speed.
+                let limit = self.scene.routes[route].speed_limit_mps;
                 match self.leader(usize::MAX, route, s, length) {
                     None => {
-                        placed = Some((route, f64::INFINITY, 0.0));
+                        placed = Some((route, f64::INFINITY, limit));
                         break;
                     }
-                    Some((gap, j)) if gap >= self.config.vehicles.min_gap_m + 1.0 => {
-                        let vl = self.vehicles[j].v;
-                        placed = Some((route, gap, vl));
-                        break;
+                    Some((gap, j)) => {
+                        let v = self.vehicles[j].v.min(limit);
+                        if gap >= vc.min_gap_m + v * vc.time_headway_s {
+                            placed = Some((route, gap, v));
+                            break;
+                        }
                     }
-                    _ => {}
                 }
             }
             let Some((route, gap, v_lead)) = placed else {
@@ -409,12 +414,7 @@ impl Traffic {
             let vc = &self.config.vehicles;
             let limit = self.scene.routes[route].speed_limit_mps;
             let v0 = limit * normal(&mut arng, cc.speed_factor, vc.desired_speed_sd);
-            let v = if gap.is_finite() {
-                v0.min(v_lead + ((gap - vc.min_gap_m) / vc.time_headway_s).max(0.0) * 0.5)
-                    .min(((gap - vc.min_gap_m) / vc.time_headway_s).max(0.0))
-            } else {
-                v0
-            };
+            let v = if gap.is_finite() { v0.min(v_lead) } else { v0 };
             let colour_idx = pick(&mut arng, vc.colours.iter().map(|c| c.share));
             let colour = jitter_colour(&mut arng, vc.colours[colour_idx].rgb, 0.04);
             let secondary = if arng.random::<f64>() < 0.7 {
