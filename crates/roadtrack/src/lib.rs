@@ -6,8 +6,10 @@
 //! - the spatio-temporal MRF model (seed 002),
 //! - particle and labelled SMC-PHD filters with a CNN likelihood (seed 004).
 
+pub mod background;
 pub mod class;
 pub mod detection;
+pub mod detector;
 pub mod error;
 pub mod frame;
 pub mod geometry;
