@@ -8,12 +8,14 @@
 
 pub mod background;
 pub mod class;
+pub mod config;
 pub mod detection;
 pub mod detector;
 pub mod error;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod overlay;
 pub mod rng;
 pub mod track;
 
