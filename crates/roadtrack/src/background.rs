@@ -73,7 +73,7 @@ impl BackgroundConfig {
         };
         unit(self.learning_rate, "learning_rate")?;
         unit(self.foreground_learning_rate, "foreground_learning_rate")?;
-        if !(self.threshold_sigma > 0.0) {
+        if self.threshold_sigma.is_nan() || self.threshold_sigma <= 0.0 {
             return Err(Error::config(
                 "BackgroundConfig",
                 "threshold_sigma",
