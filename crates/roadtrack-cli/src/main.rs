@@ -24,6 +24,7 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     Detect(cmd::detect::Args),
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +32,7 @@ fn main() -> ExitCode {
     let ui = common::Ui::new(cli.quiet, cli.verbose);
     let result = match cli.command {
         Command::Detect(args) => cmd::detect::run(args, &ui),
+        Command::Bench(args) => cmd::bench::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

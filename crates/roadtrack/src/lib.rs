@@ -7,6 +7,7 @@
 //! - particle and labelled SMC-PHD filters with a CNN likelihood (seed 004).
 
 pub mod background;
+pub mod bench;
 pub mod class;
 pub mod config;
 pub mod detection;
