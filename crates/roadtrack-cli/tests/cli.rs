@@ -191,3 +191,58 @@ fn detect_finds_people_in_vtest() {
         assert!(people >= 2, "frame {f}: {people} person-shaped regions");
     }
 }
+
+/// Every reader's bad-input classes reach the user as exit 1 with file and line.
+#[test]
+fn check_reports_each_bad_input_class_with_file_and_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cases: &[(&str, &str, &str, &str)] = &[
+        ("d.csv", "x,y\n1,2\n1,abc\n", ":3:", "not a number"),
+        ("d.csv", "x,y\n1,NaN\n", ":2:", "finite"),
+        ("d.csv", "x,y,w,h\n1,2,-3,4\n", ":2:", "negative"),
+        ("d.csv", "frame,id,x,y\n1,4,1,2\n1,4,5,5\n", ":3:", "twice"),
+        (
+            "d.csv",
+            "frame,id,x\n1,4,1\n",
+            "d.csv",
+            "missing required column `y`",
+        ),
+        (
+            "m.csv",
+            "id1,id2,probability\n1,2,7\n",
+            ":2:",
+            "probability",
+        ),
+        ("t.txt", "1,1,0,0,1,1,1\n1,1,0,0,1,1,1\n", ":2:", "twice"),
+        ("gt.txt", "1,1,0,0,-1,1,1,1,1\n", ":1:", "negative"),
+        (
+            "tr.csv",
+            "frame,time_s,id,class,x_px,y_px,w_px,h_px,score\n1,0,1,car,1,1,zz,1,1\n",
+            ":2:",
+            "w_px",
+        ),
+        ("me.csv", "step,x,y\n1,2,inf\n", ":2:", "finite"),
+        (
+            "es.csv",
+            "step,label,x,y,vx,vy,weight\n1,1,0,0,0,0,-1\n",
+            ":2:",
+            "negative",
+        ),
+    ];
+    for (name, text, at, what) in cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).expect("write");
+        let o = run(bin().arg("check").arg(&p));
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {text:?}: {e}");
+        assert!(
+            e.contains(name) && e.contains(at) && e.contains(what),
+            "{name}: {text:?}: {e}"
+        );
+    }
+    let p = dir.path().join("ok.csv");
+    std::fs::write(&p, "frame,id,x,y\n1,1,1,2\n2,1,3,4\n").expect("write");
+    let o = run(bin().arg("check").arg(&p));
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("2 detections in 2 frames"));
+}
