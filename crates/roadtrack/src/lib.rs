@@ -6,6 +6,7 @@
 //! - the spatio-temporal MRF model (seed 002),
 //! - particle and labelled SMC-PHD filters with a CNN likelihood (seed 004).
 
+pub mod analysis;
 pub mod background;
 pub mod bench;
 pub mod class;
