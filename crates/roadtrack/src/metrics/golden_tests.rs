@@ -29,7 +29,10 @@ fn compare(path: &str, expected: &Value, actual: &Value, out: &mut Vec<String>) 
             }
         }
         (Value::Number(e), Value::Number(a)) => {
-            let (e, a) = (e.as_f64().unwrap_or(f64::NAN), a.as_f64().unwrap_or(f64::NAN));
+            let (e, a) = (
+                e.as_f64().unwrap_or(f64::NAN),
+                a.as_f64().unwrap_or(f64::NAN),
+            );
             if !((e - a).abs() <= 1e-6) {
                 out.push(format!("{path}: TrackEval {e}, ours {a}"));
             }
@@ -45,12 +48,19 @@ fn config_of(v: &Value) -> EvalConfig {
         cfg.mode = serde_json::from_value(Value::String(m.to_owned())).unwrap_or_default();
     }
     if let Some(c) = v.get("classes").and_then(Value::as_array) {
-        cfg.classes = c.iter().filter_map(Value::as_u64).map(|c| c as u32).collect();
+        cfg.classes = c
+            .iter()
+            .filter_map(Value::as_u64)
+            .map(|c| c as u32)
+            .collect();
     }
     if let Some(p) = v.get("preprocess").and_then(Value::as_bool) {
         cfg.preprocess = p;
     }
-    cfg.num_frames = v.get("num_frames").and_then(Value::as_u64).map(|n| n as u32);
+    cfg.num_frames = v
+        .get("num_frames")
+        .and_then(Value::as_u64)
+        .map(|n| n as u32);
     cfg
 }
 
@@ -64,7 +74,8 @@ fn run_case(json: &Path) -> Result<Vec<String>> {
     let cfg = config_of(&doc["config"]);
     let classes_path = file("track_classes.csv");
     let report = if classes_path.exists() {
-        let text = std::fs::read_to_string(&classes_path).map_err(|e| Error::io(&classes_path, e))?;
+        let text =
+            std::fs::read_to_string(&classes_path).map_err(|e| Error::io(&classes_path, e))?;
         let mut by_key = HashMap::new();
         for line in text.lines().skip(1) {
             let v: Vec<u64> = line.split(',').filter_map(|s| s.parse().ok()).collect();
@@ -72,8 +83,10 @@ fn run_case(json: &Path) -> Result<Vec<String>> {
                 by_key.insert((f as u32, id), c as u32);
             }
         }
-        let classes: Vec<u32> =
-            tracks.iter().map(|r| by_key.get(&(r.frame, r.id)).copied().unwrap_or(0)).collect();
+        let classes: Vec<u32> = tracks
+            .iter()
+            .map(|r| by_key.get(&(r.frame, r.id)).copied().unwrap_or(0))
+            .collect();
         evaluate_classified(&gt, &tracks, &classes, &cfg)?
     } else {
         evaluate(&gt, &tracks, &cfg)?
@@ -93,7 +106,10 @@ fn every_golden_case_agrees_with_trackeval_to_1e6() -> Result<()> {
         .filter(|p| p.extension().is_some_and(|x| x == "json"))
         .collect();
     cases.sort();
-    assert!(cases.len() >= 6, "expected at least 6 golden cases in {dir:?}");
+    assert!(
+        cases.len() >= 6,
+        "expected at least 6 golden cases in {dir:?}"
+    );
     let mut failures = Vec::new();
     for c in &cases {
         let diffs = run_case(c)?;

@@ -521,3 +521,257 @@ pub fn format_table(report: &EvalReport) -> String {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BBox;
+
+    fn gt(frame: u32, id: u64, left: f64) -> MotGtRow {
+        MotGtRow {
+            frame,
+            id,
+            bbox: BBox::new(left, 10.0, 20.0, 40.0),
+            consider: true,
+            class: 1,
+            visibility: 1.0,
+        }
+    }
+
+    fn tr(frame: u32, id: u64, left: f64) -> MotTrackRow {
+        MotTrackRow {
+            frame,
+            id,
+            bbox: BBox::new(left, 10.0, 20.0, 40.0),
+            conf: 1.0,
+        }
+    }
+
+    fn two_objects() -> Vec<MotGtRow> {
+        (1..=10)
+            .flat_map(|f| [gt(f, 1, 0.0), gt(f, 2, 100.0)])
+            .collect()
+    }
+
+    #[test]
+    fn tracker_equal_to_truth_scores_perfectly() -> Result<()> {
+        let g = two_objects();
+        let t: Vec<MotTrackRow> = g
+            .iter()
+            .map(|r| tr(r.frame, r.id + 7, r.bbox.left))
+            .collect();
+        let r = evaluate(&g, &t, &EvalConfig::default())?;
+        let m = &r.summary;
+        assert_eq!(
+            (m.clear.MOTA, m.clear.MOTP, m.identity.IDF1),
+            (1.0, 1.0, 1.0)
+        );
+        assert_eq!(
+            (m.hota.HOTA, m.hota.DetA, m.hota.AssA, m.hota.LocA),
+            (1.0, 1.0, 1.0, 1.0)
+        );
+        assert_eq!(
+            (m.clear.TP, m.clear.FP, m.clear.FN, m.clear.IDSW),
+            (20, 0, 0, 0)
+        );
+        assert_eq!((m.clear.MT, r.num_frames), (2, 10));
+        Ok(())
+    }
+
+    #[test]
+    fn an_id_swap_is_one_switch_per_object_and_halves_association() -> Result<()> {
+        let g = two_objects();
+        let t: Vec<MotTrackRow> = g
+            .iter()
+            .map(|r| {
+                let swapped = r.frame > 5;
+                let id = if swapped { 3 - r.id } else { r.id };
+                tr(r.frame, id, r.bbox.left)
+            })
+            .collect();
+        let m = evaluate(&g, &t, &EvalConfig::default())?.summary;
+        assert_eq!(m.clear.IDSW, 2);
+        assert_eq!(m.clear.MOTA, (20.0 - 2.0) / 20.0);
+        assert_eq!((m.identity.IDTP, m.identity.IDF1), (10, 0.5));
+        // Each match's tracker and ground-truth ids share 5 of 15 frames: AssA = 1/3.
+        assert!((m.hota.AssA - 1.0 / 3.0).abs() < 1e-12);
+        Ok(())
+    }
+
+    #[test]
+    fn row_order_does_not_matter() -> Result<()> {
+        let g = two_objects();
+        let t: Vec<MotTrackRow> = g
+            .iter()
+            .map(|r| tr(r.frame, r.id, r.bbox.left + 3.0))
+            .collect();
+        let a = evaluate(&g, &t, &EvalConfig::default())?;
+        let (mut g2, mut t2) = (g.clone(), t.clone());
+        g2.reverse();
+        t2.rotate_left(7);
+        assert_eq!(evaluate(&g2, &t2, &EvalConfig::default())?, a);
+        Ok(())
+    }
+
+    #[test]
+    fn bad_inputs_are_clear_errors() {
+        let g = two_objects();
+        let cfg = EvalConfig::default();
+        let cases: Vec<(Vec<MotGtRow>, Vec<MotTrackRow>, &str)> = vec![
+            (
+                g.clone(),
+                vec![tr(1, 4, 0.0), tr(1, 4, 50.0)],
+                "id 4 appears twice in frame 1",
+            ),
+            (
+                vec![gt(2, 1, 0.0), gt(2, 1, 9.0)],
+                vec![],
+                "id 1 appears twice in frame 2",
+            ),
+            (
+                g.clone(),
+                vec![MotTrackRow {
+                    frame: 1,
+                    id: 1,
+                    bbox: BBox::new(0.0, 0.0, -1.0, 5.0),
+                    conf: 1.0,
+                }],
+                "negative or non-finite",
+            ),
+            (g.clone(), vec![tr(0, 1, 0.0)], "frame 0"),
+            (
+                vec![MotGtRow {
+                    class: 13,
+                    ..gt(1, 1, 0.0)
+                }],
+                vec![],
+                "not a MOT17 class",
+            ),
+        ];
+        for (g, t, msg) in cases {
+            let e = evaluate(&g, &t, &cfg).expect_err(msg).to_string();
+            assert!(e.contains(msg), "{e} does not say {msg:?}");
+        }
+        let short = EvalConfig {
+            num_frames: Some(5),
+            ..EvalConfig::default()
+        };
+        let e = evaluate(&g, &[], &short)
+            .expect_err("frame beyond")
+            .to_string();
+        assert!(e.contains("after the sequence's last frame 5"), "{e}");
+        let per_class = EvalConfig {
+            mode: ClassMode::PerClass,
+            ..EvalConfig::default()
+        };
+        assert!(evaluate(&g, &[], &per_class).is_err());
+        assert!(evaluate_classified(&g, &[tr(1, 1, 0.0)], &[], &per_class).is_err());
+    }
+
+    #[test]
+    fn empty_inputs_follow_trackeval() -> Result<()> {
+        let cfg = EvalConfig::default();
+        let none = evaluate(&[], &[], &cfg)?;
+        assert_eq!(
+            (
+                none.num_frames,
+                none.summary.clear.MOTA,
+                none.summary.clear.MLR
+            ),
+            (0, 0.0, 1.0)
+        );
+        let g = two_objects();
+        let no_tracks = evaluate(&g, &[], &cfg)?.summary;
+        assert_eq!(
+            (
+                no_tracks.clear.FN,
+                no_tracks.clear.ML,
+                no_tracks.identity.IDFN
+            ),
+            (20, 2, 20)
+        );
+        assert_eq!((no_tracks.hota.HOTA, no_tracks.hota.LocA), (0.0, 1.0));
+        let t: Vec<MotTrackRow> = g.iter().map(|r| tr(r.frame, r.id, r.bbox.left)).collect();
+        let no_gt = evaluate(&[], &t, &cfg)?.summary;
+        // TrackEval returns early: MOTA stays 0 rather than −FP.
+        assert_eq!(
+            (no_gt.clear.FP, no_gt.clear.MOTA, no_gt.identity.IDFP),
+            (20, 0.0, 20)
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn per_class_counts_a_misclassified_box_in_both_classes() -> Result<()> {
+        let mut g = two_objects();
+        for r in g.iter_mut().filter(|r| r.id == 2) {
+            r.class = 3;
+        }
+        let t: Vec<MotTrackRow> = g.iter().map(|r| tr(r.frame, r.id, r.bbox.left)).collect();
+        // The car's tracker boxes are labelled pedestrian in frames 1–2.
+        let classes: Vec<u32> = g
+            .iter()
+            .map(|r| if r.frame <= 2 { 1 } else { r.class })
+            .collect();
+        let cfg = EvalConfig {
+            mode: ClassMode::PerClass,
+            ..EvalConfig::default()
+        };
+        let r = evaluate_classified(&g, &t, &classes, &cfg)?;
+        let (ped, car) = (&r.per_class["pedestrian"], &r.per_class["car"]);
+        assert_eq!((ped.clear.TP, ped.clear.FP, ped.clear.FN), (10, 2, 0));
+        assert_eq!((car.clear.TP, car.clear.FP, car.clear.FN), (8, 0, 2));
+        assert_eq!(
+            (r.summary.clear.TP, r.summary.clear.FP, r.summary.clear.FN),
+            (18, 2, 2)
+        );
+        let ca = r.class_averaged.as_ref().map(|m| m.clear.MOTA);
+        assert_eq!(ca, Some((ped.clear.MOTA + car.clear.MOTA) / 2.0));
+        // Class-agnostic: every box matches.
+        let agn = EvalConfig {
+            mode: ClassMode::ClassAgnostic,
+            ..EvalConfig::default()
+        };
+        assert_eq!(
+            evaluate_classified(&g, &t, &classes, &agn)?
+                .summary
+                .clear
+                .MOTA,
+            1.0
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn report_has_the_interface_keys_and_a_table() -> Result<()> {
+        let g = two_objects();
+        let r = evaluate(&g, &[tr(1, 1, 0.0)], &EvalConfig::default())?;
+        let v = serde_json::to_value(&r).map_err(|e| Error::Invalid(e.to_string()))?;
+        for k in [
+            "MOTA", "MOTP", "FP", "FN", "IDSW", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA",
+            "LocA",
+        ] {
+            assert!(v.get(k).is_some_and(|x| x.is_number()), "missing key {k}");
+        }
+        let t = format_table(&r);
+        assert!(
+            t.contains("pedestrian") && t.contains("HOTA") && t.contains("IDSW"),
+            "{t}"
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn config_round_trips_through_toml_and_rejects_typos() {
+        let c = EvalConfig::default();
+        let text = toml::to_string(&c).unwrap_or_default();
+        assert_eq!(toml::from_str::<EvalConfig>(&text).ok(), Some(c));
+        assert!(toml::from_str::<EvalConfig>("iou_treshold = 0.4").is_err());
+        let bad = EvalConfig {
+            classes: vec![1, 8],
+            mode: ClassMode::PerClass,
+            ..EvalConfig::default()
+        };
+        assert!(bad.validate().is_err());
+    }
+}
