@@ -17,6 +17,7 @@ pub mod error;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod metrics;
 pub mod overlay;
 pub mod rng;
 pub mod track;
