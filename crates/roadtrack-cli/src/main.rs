@@ -1,1 +1,46 @@
-fn main() {}
+//! The `roadtrack` command: a thin layer that parses arguments, calls the library and maps
+//! errors to exit codes (0 success, 1 the input or a run failed, 2 wrong usage).
+
+mod cmd;
+mod common;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Trajectories of vehicles and pedestrians from traffic imagery.
+#[derive(Debug, Parser)]
+#[command(name = "roadtrack", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    /// Print nothing but errors (no progress bars, no summaries).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Print more detail (repeat for more).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    Detect(cmd::detect::Args),
+    Bench(cmd::bench::Args),
+    Check(cmd::check::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let ui = common::Ui::new(cli.quiet, cli.verbose);
+    let result = match cli.command {
+        Command::Detect(args) => cmd::detect::run(args, &ui),
+        Command::Bench(args) => cmd::bench::run(args, &ui),
+        Command::Check(args) => cmd::check::run(args, &ui),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("roadtrack: error: {err:#}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -68,7 +68,7 @@ pub enum Error {
         message: String,
     },
     /// Reading or writing a file failed.
-    #[error("cannot access {}: {source}", path.display())]
+    #[error("cannot access {}", path.display())]
     Io {
         /// The underlying error.
         #[source]
@@ -77,7 +77,7 @@ pub enum Error {
         path: PathBuf,
     },
     /// Encoding or decoding an image failed.
-    #[error("image {}: {source}", path.display())]
+    #[error("image {}", path.display())]
     Image {
         /// The underlying error.
         #[source]

@@ -6,13 +6,20 @@
 //! - the spatio-temporal MRF model (seed 002),
 //! - particle and labelled SMC-PHD filters with a CNN likelihood (seed 004).
 
+pub mod analysis;
+pub mod background;
+pub mod bench;
 pub mod calibration;
 pub mod class;
+pub mod config;
 pub mod detection;
+pub mod detector;
 pub mod error;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod metrics;
+pub mod overlay;
 pub mod rng;
 pub mod sim;
 pub mod track;

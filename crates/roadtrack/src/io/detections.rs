@@ -72,16 +72,16 @@ pub fn read_detections(path: &Path) -> Result<Vec<Detection>> {
             }
         };
         let score = row.opt_f64("score")?;
-        if let Some(s) = score {
-            if !(0.0..=1.0).contains(&s) {
-                return Err(row.error("score", format!("score {s} outside [0, 1]")));
-            }
+        if let Some(s) = score
+            && !(0.0..=1.0).contains(&s)
+        {
+            return Err(row.error("score", format!("score {s} outside [0, 1]")));
         }
         let area_px = row.opt_f64("area")?;
-        if let Some(a) = area_px {
-            if a < 0.0 {
-                return Err(row.error("area", format!("negative area {a}")));
-            }
+        if let Some(a) = area_px
+            && a < 0.0
+        {
+            return Err(row.error("area", format!("negative area {a}")));
         }
         out.push(Detection {
             frame,

@@ -36,16 +36,16 @@ pub fn read_matches(path: &Path) -> Result<Vec<MatchRow>> {
         if id1.is_none() && id2.is_none() {
             return Err(row.error("id1", "row has neither id1 nor id2"));
         }
-        if let Some(i) = id1 {
-            if !seen.insert(i) {
-                return Err(row.error("id1", format!("id1 {i} listed twice")));
-            }
+        if let Some(i) = id1
+            && !seen.insert(i)
+        {
+            return Err(row.error("id1", format!("id1 {i} listed twice")));
         }
         let probability = row.opt_f64("probability")?;
-        if let Some(p) = probability {
-            if !(0.0..=1.0).contains(&p) {
-                return Err(row.error("probability", format!("probability {p} outside [0, 1]")));
-            }
+        if let Some(p) = probability
+            && !(0.0..=1.0).contains(&p)
+        {
+            return Err(row.error("probability", format!("probability {p} outside [0, 1]")));
         }
         out.push(MatchRow {
             id1,

@@ -47,23 +47,23 @@ impl SourceOptions {
         if self.step == 0 {
             return Err(Error::config("SourceOptions", "step", "must be at least 1"));
         }
-        if let Some(end) = self.end {
-            if end < self.start {
-                return Err(Error::config(
-                    "SourceOptions",
-                    "end",
-                    format!("{end} is before start {}", self.start),
-                ));
-            }
+        if let Some(end) = self.end
+            && end < self.start
+        {
+            return Err(Error::config(
+                "SourceOptions",
+                "end",
+                format!("{end} is before start {}", self.start),
+            ));
         }
-        if let Some(fps) = self.fps {
-            if !(fps.is_finite() && fps > 0.0) {
-                return Err(Error::config(
-                    "SourceOptions",
-                    "fps",
-                    format!("must be positive, found {fps}"),
-                ));
-            }
+        if let Some(fps) = self.fps
+            && !(fps.is_finite() && fps > 0.0)
+        {
+            return Err(Error::config(
+                "SourceOptions",
+                "fps",
+                format!("must be positive, found {fps}"),
+            ));
         }
         Ok(())
     }
@@ -72,7 +72,7 @@ impl SourceOptions {
     pub fn selects(&self, index: u32) -> bool {
         index >= self.start
             && self.end.is_none_or(|e| index <= e)
-            && (index - self.start) % self.step == 0
+            && (index - self.start).is_multiple_of(self.step)
     }
 
     /// How many of `total` frames are selected.

@@ -1,0 +1,135 @@
+//! `roadtrack detect`: moving-object extraction for fixed cameras.
+
+use crate::common::{FrameArgs, Ui, load_config};
+use anyhow::{Context, Result};
+use roadtrack::detector::{Detector, DetectorConfig};
+use roadtrack::io::{detections::write_detections, source};
+use std::path::PathBuf;
+
+/// Find moving objects (background subtraction → regions) in every frame.
+///
+/// For each region: centre, box, area and mean RGB, written as a detections CSV.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Example:\n  roadtrack detect ../shared/data/vtest.avi -o detections.csv --overlay overlay/ --end 100"
+)]
+pub struct Args {
+    /// Video file, folder of numbered images, or MOTChallenge sequence folder.
+    pub input: PathBuf,
+    /// Output detections CSV (`-` for standard output).
+    #[arg(short, long, default_value = "detections.csv")]
+    pub output: PathBuf,
+    /// TOML file with a `DetectorConfig` ([background] and [regions] tables).
+    #[arg(long, value_name = "F.toml")]
+    pub config: Option<PathBuf>,
+    /// Smallest region kept, px² (overrides the config).
+    #[arg(long)]
+    pub min_area: Option<u32>,
+    /// Largest region kept, px² (overrides the config).
+    #[arg(long)]
+    pub max_area: Option<u32>,
+    /// Foreground threshold in standard deviations (overrides the config).
+    #[arg(long)]
+    pub threshold_sigma: Option<f64>,
+    /// Also write each frame with the detected boxes drawn, as PNG, into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub overlay: Option<PathBuf>,
+    /// Also write each frame's cleaned foreground mask, as PNG, into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub masks: Option<PathBuf>,
+    #[command(flatten)]
+    pub frames: FrameArgs,
+}
+
+pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    let mut config: DetectorConfig = load_config(args.config.as_deref())?;
+    if let Some(a) = args.min_area {
+        config.regions.min_area_px = a;
+    }
+    if let Some(a) = args.max_area {
+        config.regions.max_area_px = a;
+    }
+    if let Some(k) = args.threshold_sigma {
+        config.background.threshold_sigma = k;
+    }
+    config.validate()?;
+    let options = args.frames.options();
+    // First pass: sample frames for the initial background.
+    let first = source::open(&args.input, &options)?;
+    let total = first.info.selected_frames;
+    ui.detail(format!(
+        "{}: {}×{} px, {} fps, {} frames selected",
+        args.input.display(),
+        first.info.width,
+        first.info.height,
+        first.info.fps,
+        total.map_or("unknown".into(), |t| t.to_string())
+    ));
+    let bar = ui.progress(
+        Some(u64::from(config.background.bootstrap_frames)),
+        "background",
+    );
+    let mut detector = Detector::bootstrap(config, first.inspect(|_| bar.inc(0)), total)?;
+    bar.finish_and_clear();
+
+    let frames = source::open(&args.input, &options)?;
+    let bar = ui.progress(total.map(u64::from), "detect");
+    let mut all = Vec::new();
+    let mut n_frames = 0u64;
+    for frame in frames {
+        let frame = frame?;
+        let found = detector.process(&frame)?;
+        let dets: Vec<_> = found
+            .regions
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1))
+            .collect();
+        if let Some(dir) = &args.overlay {
+            let mut img = frame.image.clone();
+            for d in &dets {
+                if let Some(b) = d.bbox() {
+                    roadtrack::overlay::draw_box(&mut img, &b, roadtrack::overlay::id_colour(d.id));
+                }
+            }
+            save_png(dir, frame.index, &img)?;
+        }
+        if let Some(dir) = &args.masks {
+            save_png(dir, frame.index, &found.mask)?;
+        }
+        all.extend(dets);
+        n_frames += 1;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    write_detections(&args.output, &all)?;
+    ui.info(format!(
+        "{} detections in {} frames → {}",
+        all.len(),
+        n_frames,
+        args.output.display()
+    ));
+    Ok(())
+}
+
+/// Saves `img` as `dir/NNNNNN.png` atomically.
+pub fn save_png<P, C>(
+    dir: &std::path::Path,
+    index: u32,
+    img: &image::ImageBuffer<P, C>,
+) -> Result<()>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+    C: std::ops::Deref<Target = [P::Subpixel]>,
+{
+    let path = dir.join(format!("{index:06}.png"));
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .with_context(|| format!("encoding {}", path.display()))?;
+    roadtrack::io::atomic::write_bytes_atomic(&path, &bytes)?;
+    Ok(())
+}

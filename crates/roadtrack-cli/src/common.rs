@@ -1,0 +1,91 @@
+//! Plumbing every subcommand shares: terminal output, progress bars, frame selection.
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use roadtrack::io::SourceOptions;
+use std::path::Path;
+
+/// How much to print. Progress bars go to stderr and only when it is a terminal.
+#[derive(Debug, Clone, Copy)]
+pub struct Ui {
+    quiet: bool,
+    verbose: u8,
+}
+
+impl Ui {
+    pub fn new(quiet: bool, verbose: u8) -> Self {
+        Self { quiet, verbose }
+    }
+
+    /// A progress bar over `total` items (a spinner when unknown); hidden with `-q` or when
+    /// stderr is not a terminal.
+    pub fn progress(&self, total: Option<u64>, what: &str) -> ProgressBar {
+        if self.quiet {
+            return ProgressBar::hidden();
+        }
+        let bar = match total {
+            Some(t) => ProgressBar::with_draw_target(Some(t), ProgressDrawTarget::stderr()),
+            None => ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr()),
+        };
+        let template = if total.is_some() {
+            "{msg:>10} [{bar:30}] {pos}/{len} {per_sec} eta {eta}"
+        } else {
+            "{msg:>10} {spinner} {pos} {per_sec}"
+        };
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        bar.set_message(what.to_owned());
+        bar
+    }
+
+    /// A line for the user on stderr, unless `-q`.
+    pub fn info(&self, msg: impl AsRef<str>) {
+        if !self.quiet {
+            eprintln!("{}", msg.as_ref());
+        }
+    }
+
+    /// A line shown only with `-v`.
+    pub fn detail(&self, msg: impl AsRef<str>) {
+        if !self.quiet && self.verbose > 0 {
+            eprintln!("{}", msg.as_ref());
+        }
+    }
+}
+
+/// Frame selection flags for every command that reads frames.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FrameArgs {
+    /// Frames per second (image folders default to 10; overrides a video's own rate).
+    #[arg(long, value_name = "FPS")]
+    pub fps: Option<f64>,
+    /// First frame to read (1-based).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub start: u32,
+    /// Last frame to read, inclusive.
+    #[arg(long, value_name = "N")]
+    pub end: Option<u32>,
+    /// Read every N-th frame from --start.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub step: u32,
+}
+
+impl FrameArgs {
+    pub fn options(&self) -> SourceOptions {
+        SourceOptions {
+            fps: self.fps,
+            start: self.start,
+            end: self.end,
+            step: self.step,
+        }
+    }
+}
+
+/// Loads a TOML config when a path is given, else the default.
+pub fn load_config<T: serde::de::DeserializeOwned + Default>(path: Option<&Path>) -> Result<T> {
+    match path {
+        Some(p) => roadtrack::config::load_toml(p).with_context(|| "reading --config"),
+        None => Ok(T::default()),
+    }
+}

@@ -1,0 +1,221 @@
+//! Throughput measurements behind `roadtrack bench`.
+//!
+//! Each stage runs on a named input and reports frames (or items) per second of wall time.
+//! Timings are measurements, never test assertions.
+
+use crate::detector::{Detector, DetectorConfig};
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::io::{SourceOptions, source};
+use image::{Rgb, RgbImage};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// One measured stage.
+#[derive(Debug, Clone, Serialize)]
+pub struct StageResult {
+    /// Stage name, e.g. `decode`.
+    pub stage: String,
+    /// What it ran on, e.g. `vtest.avi 768×576`.
+    pub input: String,
+    /// Items processed (frames unless `unit` says otherwise).
+    pub items: u64,
+    /// What an item is (`frames`, `vehicles`, …).
+    pub unit: String,
+    /// Wall time, s.
+    pub seconds: f64,
+    /// Items per second.
+    pub per_second: f64,
+}
+
+impl StageResult {
+    /// A result from a count and a duration.
+    pub fn new(stage: &str, input: &str, items: u64, unit: &str, seconds: f64) -> Self {
+        Self {
+            stage: stage.to_owned(),
+            input: input.to_owned(),
+            items,
+            unit: unit.to_owned(),
+            seconds,
+            per_second: if seconds > 0.0 {
+                items as f64 / seconds
+            } else {
+                f64::INFINITY
+            },
+        }
+    }
+}
+
+/// The machine the figures were taken on.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    /// CPU model from `/proc/cpuinfo` (or `unknown`).
+    pub cpu: String,
+    /// Logical cores available to this process.
+    pub cores: usize,
+    /// Threads rayon uses.
+    pub rayon_threads: usize,
+}
+
+/// Describes this machine.
+pub fn machine() -> Machine {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown".into());
+    Machine {
+        cpu,
+        cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        rayon_threads: rayon::current_num_threads(),
+    }
+}
+
+/// Decodes `path` (any frame source) and returns the stage result.
+pub fn decode(path: &Path, options: &SourceOptions) -> Result<StageResult> {
+    let start = Instant::now();
+    let src = source::open(path, options)?;
+    let label = input_label(path, src.info.width, src.info.height);
+    let mut n = 0u64;
+    let mut checksum = 0u64;
+    for f in src {
+        let f = f?;
+        // Touch the pixels so no work can be skipped.
+        checksum = checksum.wrapping_add(
+            f.image
+                .as_raw()
+                .iter()
+                .step_by(97)
+                .map(|&v| u64::from(v))
+                .sum::<u64>(),
+        );
+        n += 1;
+    }
+    std::hint::black_box(checksum);
+    Ok(StageResult::new(
+        "decode",
+        &label,
+        n,
+        "frames",
+        start.elapsed().as_secs_f64(),
+    ))
+}
+
+/// Runs foreground extraction over frames already in memory (decode excluded).
+pub fn detect_frames(
+    label: &str,
+    frames: &[Frame],
+    config: &DetectorConfig,
+) -> Result<StageResult> {
+    let total = Some(frames.len() as u32);
+    let mut det = Detector::bootstrap(config.clone(), frames.iter().cloned().map(Ok), total)?;
+    let start = Instant::now();
+    let mut regions = 0usize;
+    for f in frames {
+        regions += det.detect(f)?.len();
+    }
+    std::hint::black_box(regions);
+    Ok(StageResult::new(
+        "detect",
+        label,
+        frames.len() as u64,
+        "frames",
+        start.elapsed().as_secs_f64(),
+    ))
+}
+
+/// Reads up to `max_frames` frames of `path` into memory.
+pub fn load_frames(path: &Path, max_frames: u32) -> Result<(String, Vec<Frame>)> {
+    let opts = SourceOptions {
+        end: Some(max_frames),
+        ..Default::default()
+    };
+    let src = source::open(path, &opts)?;
+    let label = input_label(path, src.info.width, src.info.height);
+    Ok((label, src.collect::<Result<Vec<_>>>()?))
+}
+
+fn input_label(path: &Path, w: u32, h: u32) -> String {
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    format!("{name} {w}×{h}")
+}
+
+/// A generated sequence: `n_objects` coloured rectangles moving at constant velocity over
+/// a textured static background, `width × height` px. Deterministic (no randomness).
+pub fn moving_boxes(width: u32, height: u32, n_frames: u32, n_objects: u32) -> Vec<Frame> {
+    let background = RgbImage::from_fn(width, height, |x, y| {
+        let v = 95 + ((x * 7 + y * 13) % 17) as u8;
+        Rgb([v, v, v.saturating_add(3)])
+    });
+    (1..=n_frames)
+        .map(|i| {
+            let mut img = background.clone();
+            for k in 0..n_objects {
+                let (bw, bh) = (24 + 4 * (k % 5), 14 + 3 * (k % 4));
+                let speed = 2 + (k % 6) as i64;
+                let dir = if k % 2 == 0 { 1 } else { -1 };
+                let lane_y = (20 + (k * 37) % (height.saturating_sub(bh + 40)).max(1)) as i64;
+                let span = i64::from(width + bw);
+                let x0 = (i64::from(k * 53) + dir * speed * i64::from(i)).rem_euclid(span)
+                    - i64::from(bw);
+                let colour = Rgb([
+                    (40 + k * 67 % 200) as u8,
+                    (30 + k * 101 % 210) as u8,
+                    (50 + k * 29 % 190) as u8,
+                ]);
+                for y in lane_y..lane_y + i64::from(bh) {
+                    for x in x0..x0 + i64::from(bw) {
+                        if x >= 0 && y >= 0 && x < i64::from(width) && y < i64::from(height) {
+                            img.put_pixel(x as u32, y as u32, colour);
+                        }
+                    }
+                }
+            }
+            Frame {
+                index: i,
+                time_s: f64::from(i - 1) / 10.0,
+                image: img,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generated_sequence_has_the_objects_the_detector_finds() -> Result<()> {
+        let frames = moving_boxes(320, 240, 30, 4);
+        let mut det = Detector::bootstrap(
+            DetectorConfig::default(),
+            frames.iter().cloned().map(Ok),
+            Some(30),
+        )?;
+        let counts: Vec<usize> = frames
+            .iter()
+            .map(|f| det.detect(f).map(|d| d.len()))
+            .collect::<Result<_>>()?;
+        // Objects may touch the border or overlap each other, so allow fewer, never more.
+        assert!(counts.iter().all(|&c| c <= 4), "{counts:?}");
+        assert!(
+            counts.iter().filter(|&&c| c >= 3).count() > 20,
+            "{counts:?}"
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn stage_rate_is_items_over_seconds() {
+        let r = StageResult::new("x", "y", 50, "frames", 2.0);
+        assert_eq!(r.per_second, 25.0);
+    }
+}

@@ -1,0 +1,1 @@
+//! OSPA and GOSPA.
