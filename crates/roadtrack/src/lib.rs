@@ -16,6 +16,7 @@ pub mod frame;
 pub mod geometry;
 pub mod io;
 pub mod overlay;
+pub mod relaxation;
 pub mod rng;
 pub mod track;
 
