@@ -20,6 +20,7 @@ pub mod geometry;
 pub mod io;
 pub mod metrics;
 pub mod overlay;
+pub mod relaxation;
 pub mod rng;
 pub mod sim;
 pub mod track;

@@ -1,0 +1,270 @@
+//! Baselines for the experiments (issue 5 item 5): nearest neighbour and the globally
+//! optimal one-to-one assignment, both with the relaxation's square gate `D`.
+
+use super::labels::LabelGraph;
+use crate::detection::Detection;
+use crate::error::Result;
+use crate::geometry::Point;
+
+fn positions(f: &[Detection]) -> Vec<Point> {
+    f.iter().map(|d| d.pos_px).collect()
+}
+
+fn dist(d: [f64; 2]) -> f64 {
+    d[0].hypot(d[1])
+}
+
+/// Nearest neighbour: every frame-1 vehicle takes the closest frame-2 vehicle inside its
+/// gate (Euclidean), independently of the others; none when the gate is empty.
+/// Choice: exact ties go to the lower frame-2 index.
+///
+/// # Errors
+/// From [`LabelGraph::new`].
+pub fn nearest_neighbour(
+    frame1: &[Detection],
+    frame2: &[Detection],
+    gate_half_width_px: f64,
+) -> Result<Vec<Option<usize>>> {
+    let g = LabelGraph::new(&positions(frame1), &positions(frame2), gate_half_width_px)?;
+    Ok((0..g.m)
+        .map(|i| {
+            let mut best: Option<(f64, usize)> = None;
+            for e in g.fwd_range(i) {
+                let d = dist(g.fwd_disp[e]);
+                if best.is_none_or(|(b, _)| d < b) {
+                    best = Some((d, g.fwd_target[e] as usize));
+                }
+            }
+            best.map(|(_, k)| k)
+        })
+        .collect())
+}
+
+/// Globally optimal assignment: the one-to-one pairing, within the gate, that minimises
+/// the total distance plus `D` for every vehicle of either frame left unpaired.
+///
+/// Choice: with the no-match cost `D` per vehicle a pair (cost ≤ `D·√2 < 2D`) always beats
+/// leaving both vehicles unpaired, so this is the minimum-distance matching of maximum
+/// size inside the gate. Solved exactly by the Hungarian method on each connected
+/// component of the gate graph (`O(c³)` for a component of `c` vehicles: fine for the
+/// paper's ~50 vehicles per pair, not meant for the 100 000 of the scale benchmark).
+///
+/// # Errors
+/// From [`LabelGraph::new`].
+pub fn optimal_assignment(
+    frame1: &[Detection],
+    frame2: &[Detection],
+    gate_half_width_px: f64,
+) -> Result<Vec<Option<usize>>> {
+    let g = LabelGraph::new(&positions(frame1), &positions(frame2), gate_half_width_px)?;
+    let (m, n) = (g.m, g.n);
+    // Union-find over frame-1 vehicles 0..m and frame-2 vehicles m..m+n.
+    let mut parent: Vec<usize> = (0..m + n).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    for i in 0..m {
+        for e in g.fwd_range(i) {
+            let (a, b) = (
+                find(&mut parent, i),
+                find(&mut parent, m + g.fwd_target[e] as usize),
+            );
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut members: std::collections::BTreeMap<usize, (Vec<usize>, Vec<usize>)> =
+        Default::default();
+    for v in 0..m + n {
+        let root = find(&mut parent, v);
+        let entry = members.entry(root).or_default();
+        if v < m {
+            entry.0.push(v);
+        } else {
+            entry.1.push(v - m);
+        }
+    }
+    let mut partner = vec![None; m];
+    let miss = gate_half_width_px;
+    for (rows, cols) in members.values() {
+        if rows.is_empty() || cols.is_empty() {
+            continue;
+        }
+        let (a, b) = (rows.len(), cols.len());
+        let size = a + b;
+        let mut cost = vec![FORBIDDEN; size * size];
+        let col_of: std::collections::HashMap<usize, usize> =
+            cols.iter().enumerate().map(|(c, &k)| (k, c)).collect();
+        for (r, &i) in rows.iter().enumerate() {
+            for e in g.fwd_range(i) {
+                let c = col_of[&(g.fwd_target[e] as usize)];
+                cost[r * size + c] = dist(g.fwd_disp[e]);
+            }
+            cost[r * size + b + r] = miss; // a_i unpaired
+        }
+        for c in 0..b {
+            cost[(a + c) * size + c] = miss; // b_k unpaired
+            for r in 0..a {
+                cost[(a + c) * size + b + r] = 0.0; // dummy–dummy
+            }
+        }
+        let assign = hungarian(&cost, size);
+        for (r, &i) in rows.iter().enumerate() {
+            let c = assign[r];
+            if c < b && cost[r * size + c] < FORBIDDEN {
+                partner[i] = Some(cols[c]);
+            }
+        }
+    }
+    Ok(partner)
+}
+
+/// Cost of a forbidden pair: larger than any sum of allowed costs we build.
+const FORBIDDEN: f64 = 1e15;
+
+/// The Hungarian method (shortest augmenting paths with potentials, `O(n³)`) on a square
+/// `n × n` row-major cost matrix: the column assigned to each row, minimising the sum.
+pub fn hungarian(cost: &[f64], n: usize) -> Vec<usize> {
+    debug_assert_eq!(cost.len(), n * n, "square matrix");
+    // 1-based arrays as in the classic formulation; column 0 is the virtual start.
+    let mut u = vec![0.0; n + 1];
+    let mut v = vec![0.0; n + 1];
+    let mut p = vec![0usize; n + 1]; // p[j]: row assigned to column j
+    let mut way = vec![0usize; n + 1];
+    for i in 1..=n {
+        p[0] = i;
+        let mut j0 = 0usize;
+        let mut minv = vec![f64::INFINITY; n + 1];
+        let mut used = vec![false; n + 1];
+        loop {
+            used[j0] = true;
+            let i0 = p[j0];
+            let mut delta = f64::INFINITY;
+            let mut j1 = 0usize;
+            for j in 1..=n {
+                if !used[j] {
+                    let cur = cost[(i0 - 1) * n + (j - 1)] - u[i0] - v[j];
+                    if cur < minv[j] {
+                        minv[j] = cur;
+                        way[j] = j0;
+                    }
+                    if minv[j] < delta {
+                        delta = minv[j];
+                        j1 = j;
+                    }
+                }
+            }
+            for j in 0..=n {
+                if used[j] {
+                    u[p[j]] += delta;
+                    v[j] -= delta;
+                } else {
+                    minv[j] -= delta;
+                }
+            }
+            j0 = j1;
+            if p[j0] == 0 {
+                break;
+            }
+        }
+        loop {
+            let j1 = way[j0];
+            p[j0] = p[j1];
+            j0 = j1;
+            if j0 == 0 {
+                break;
+            }
+        }
+    }
+    let mut row_to_col = vec![0usize; n];
+    for j in 1..=n {
+        if p[j] > 0 {
+            row_to_col[p[j] - 1] = j - 1;
+        }
+    }
+    row_to_col
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn at(id: u64, x: f64, y: f64) -> Detection {
+        Detection::at(1, id, Point::new(x, y))
+    }
+
+    #[test]
+    fn nearest_neighbour_may_share_a_partner_and_assignment_may_not() -> Result<()> {
+        // a_0 (0,0), a_1 (30,0); b_0 (20,0), b_1 (100,0). NN: a_0 → b_0 (20), a_1 → b_0 (10).
+        // Assignment: {a_0–b_0 20, a_1–b_1 70} = 90 vs {a_0–b_1 100, a_1–b_0 10} = 110:
+        // a_0 → b_0, a_1 → b_1.
+        let f1 = [at(1, 0.0, 0.0), at(2, 30.0, 0.0)];
+        let f2 = [at(1, 20.0, 0.0), at(2, 100.0, 0.0)];
+        assert_eq!(nearest_neighbour(&f1, &f2, 150.0)?, vec![Some(0), Some(0)]);
+        assert_eq!(optimal_assignment(&f1, &f2, 150.0)?, vec![Some(0), Some(1)]);
+        // Outside the gate nobody is paired.
+        assert_eq!(optimal_assignment(&f1, &f2, 5.0)?, vec![None, None]);
+        Ok(())
+    }
+
+    /// Every way to pair rows with distinct columns or nothing: the minimum of the
+    /// objective of [`optimal_assignment`].
+    fn brute_force(d: &[Vec<Option<f64>>], n: usize, miss: f64) -> f64 {
+        fn go(r: usize, d: &[Vec<Option<f64>>], used: &mut Vec<bool>, miss: f64) -> f64 {
+            if r == d.len() {
+                return miss * used.iter().filter(|u| !**u).count() as f64;
+            }
+            let mut best = miss + go(r + 1, d, used, miss);
+            for c in 0..used.len() {
+                if let (false, Some(x)) = (used[c], d[r][c]) {
+                    used[c] = true;
+                    best = best.min(x + go(r + 1, d, used, miss));
+                    used[c] = false;
+                }
+            }
+            best
+        }
+        go(0, d, &mut vec![false; n], miss)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn assignment_reaches_the_brute_force_optimum(
+            a in prop::collection::vec((0.0..200.0f64, 0.0..60.0f64), 0..5),
+            b in prop::collection::vec((0.0..200.0f64, 0.0..60.0f64), 0..5),
+        ) {
+            let gate = 50.0;
+            let f1: Vec<_> = a.iter().enumerate().map(|(i, &(x, y))| at(i as u64, x, y)).collect();
+            let f2: Vec<_> = b.iter().enumerate().map(|(i, &(x, y))| at(i as u64, x, y)).collect();
+            let got = optimal_assignment(&f1, &f2, gate).expect("assign");
+            let mut used = vec![false; f2.len()];
+            let mut total = 0.0;
+            for (i, k) in got.iter().enumerate() {
+                match k {
+                    Some(k) => {
+                        prop_assert!(!used[*k], "column used twice");
+                        used[*k] = true;
+                        let d = [f2[*k].pos_px.x - f1[i].pos_px.x, f2[*k].pos_px.y - f1[i].pos_px.y];
+                        prop_assert!(super::super::labels::in_gate(d, gate));
+                        total += dist(d);
+                    }
+                    None => total += gate,
+                }
+            }
+            total += gate * used.iter().filter(|u| !**u).count() as f64;
+            let d: Vec<Vec<Option<f64>>> = f1.iter().map(|p| f2.iter().map(|q| {
+                let d = [q.pos_px.x - p.pos_px.x, q.pos_px.y - p.pos_px.y];
+                super::super::labels::in_gate(d, gate).then(|| dist(d))
+            }).collect()).collect();
+            let best = brute_force(&d, f2.len(), gate);
+            prop_assert!((total - best).abs() < 1e-6, "got {total}, optimum {best}");
+        }
+    }
+}
