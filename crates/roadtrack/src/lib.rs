@@ -16,6 +16,7 @@ pub mod error;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod mrf;
 pub mod overlay;
 pub mod rng;
 pub mod track;
