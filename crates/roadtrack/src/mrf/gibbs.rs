@@ -10,7 +10,7 @@ use super::energy::{
     Terms, neighbour_count, overlap_pixels, smoothness_energy, texture_sad, total_energy,
 };
 use super::object_map::{BlockGrid, ObjectId, ObjectMap, Vector};
-use super::propagate::Site;
+use super::propagate::{Candidate, Site};
 use super::{MrfConfig, Variant};
 use crate::rng::{Stream, rng_for};
 use image::GrayImage;
@@ -57,14 +57,20 @@ pub fn temperature(config: &MrfConfig, iteration: u32) -> f64 {
     (config.initial_temperature * config.cooling.powi(iteration as i32)).max(config.min_temperature)
 }
 
-/// The vectors the sampler may move a site to (improved variant).
-// Choice: the proposal set is the site's current vector, each candidate's own block-matching
-// vector, the current vectors of its 8 neighbours and the current vector ±1 px along each
-// axis, deduplicated and kept within the search window — not all 49 × 49 vectors
-// (METHODS.md §2 suggests this set as sound and far cheaper).
+/// The vectors the sampler may give a site together with candidate id `candidate`
+/// (improved variant).
+// Choice: the vector belongs to the candidate: D and M of candidate O_m use "the local
+// vector of the O_m block it came from" (§3.2), so each candidate proposes its own vectors —
+// its block-matching vector, the current vectors of the 8 neighbours that carry the same id,
+// and, when the site currently carries this id, its current vector and that vector ±1 px
+// along each axis — deduplicated and kept within the search window. Not all 49 × 49 vectors
+// (METHODS.md §2 suggests this set as sound and far cheaper); sharing one set between ids
+// would let every id borrow the best-matching vector and make D blind to the id.
 pub fn proposals(
     site: &Site,
+    candidate: &Candidate,
     grid: &BlockGrid,
+    ids: &[ObjectId],
     vectors: &[Option<Vector>],
     radius_px: u32,
 ) -> Vec<Vector> {
@@ -75,19 +81,19 @@ pub fn proposals(
             out.push(v);
         }
     };
-    let cur = vectors[site.block];
-    if let Some(v) = cur {
+    let current = (ids[site.block] == candidate.id)
+        .then_some(vectors[site.block])
+        .flatten();
+    if let Some(v) = current {
         push(v);
     }
-    for c in &site.candidates {
-        push(c.vector);
-    }
+    push(candidate.vector);
     for nb in grid.neighbours8(site.block).into_iter().flatten() {
-        if let Some(v) = vectors[nb] {
+        if let (true, Some(v)) = (ids[nb] == candidate.id, vectors[nb]) {
             push(v);
         }
     }
-    if let Some(v) = cur {
+    if let Some(v) = current {
         for d in [[1, 0], [-1, 0], [0, 1], [0, -1]] {
             push([v[0] + d[0], v[1] + d[1]]);
         }
@@ -127,30 +133,22 @@ pub fn site_energies(
             }
         }
         Variant::Improved => {
-            let props = proposals(site, &grid, vectors, cfg.search_radius_px);
-            let nbrs: Vec<Vector> = grid
-                .neighbours8(site.block)
-                .into_iter()
-                .flatten()
-                .filter_map(|nb| vectors[nb])
-                .collect();
-            let per_vector: Vec<(u32, f64)> = props
-                .iter()
-                .map(|&v| {
-                    (
-                        texture_sad(ctx.prev_gray, ctx.cur_gray, &grid, site.block, v),
-                        smoothness_energy(v, nbrs.iter().copied(), cfg),
-                    )
-                })
-                .collect();
             for c in &site.candidates {
                 let n = neighbour_count(ids, &grid, site.block, c.id);
-                for (&v, &(d, smoothness)) in props.iter().zip(&per_vector) {
+                // Eq. 4 over every neighbour that carries a vector (the paper's U_mv does
+                // not depend on the candidate id).
+                let nbrs: Vec<Vector> = grid
+                    .neighbours8(site.block)
+                    .into_iter()
+                    .flatten()
+                    .filter_map(|nb| vectors[nb])
+                    .collect();
+                for v in proposals(site, c, &grid, ids, vectors, cfg.search_radius_px) {
                     let terms = Terms {
                         n,
                         m: overlap_pixels(ctx.prev_map, site.block, v, c.id),
-                        d,
-                        smoothness,
+                        d: texture_sad(ctx.prev_gray, ctx.cur_gray, &grid, site.block, v),
+                        smoothness: smoothness_energy(v, nbrs.iter().copied(), cfg),
                     };
                     out.push((c.id, v, total_energy(&terms, cfg)));
                 }
@@ -278,7 +276,6 @@ pub fn representative_vectors(
 
 #[cfg(test)]
 mod tests {
-    use super::super::propagate::Candidate;
     use super::*;
     use crate::rng::rng_for;
 
@@ -326,11 +323,13 @@ mod tests {
                         id: 1,
                         vector: [4, 0],
                         sad: 0,
+                        rounded: true,
                     },
                     Candidate {
                         id: 2,
                         vector: [-4, 0],
                         sad: 0,
+                        rounded: true,
                     },
                 ],
             })
@@ -468,36 +467,43 @@ mod tests {
     }
 
     #[test]
-    fn proposals_hold_current_candidates_neighbours_and_unit_steps() {
+    fn proposals_are_the_candidates_own_vectors_and_unit_steps() {
         let g = BlockGrid::for_frame(32, 32);
         let mut vectors = vec![None; g.len()];
+        let mut ids = vec![0; g.len()];
+        let c1 = Candidate {
+            id: 1,
+            vector: [5, 5],
+            sad: 0,
+            rounded: true,
+        };
+        let c2 = Candidate {
+            id: 2,
+            vector: [2, 0],
+            sad: 0,
+            rounded: true,
+        };
         let site = Site {
             block: g.index(1, 1),
-            candidates: vec![
-                Candidate {
-                    id: 1,
-                    vector: [5, 5],
-                    sad: 0,
-                },
-                Candidate {
-                    id: 2,
-                    vector: [2, 0],
-                    sad: 0,
-                },
-            ],
+            candidates: vec![c1, c2],
         };
-        vectors[site.block] = Some([2, 0]);
+        ids[site.block] = 2;
+        vectors[site.block] = Some([2, 1]);
+        ids[g.index(0, 0)] = 1;
         vectors[g.index(0, 0)] = Some([-3, 1]);
+        ids[g.index(2, 2)] = 2;
         vectors[g.index(2, 2)] = Some([2, 0]);
-        let p = proposals(&site, &g, &vectors, 24);
+        // Id 1 is not the current id: its own vector and its neighbour's.
         assert_eq!(
-            p,
-            vec![[2, 0], [5, 5], [-3, 1], [3, 0], [1, 0], [2, 1], [2, -1]]
+            proposals(&site, &c1, &g, &ids, &vectors, 24),
+            vec![[5, 5], [-3, 1]]
         );
+        // Id 2 is current: current, own, neighbour (same as own), ±1 steps of current.
         assert_eq!(
-            proposals(&site, &g, &vectors, 2),
-            vec![[2, 0], [1, 0], [2, 1], [2, -1]]
+            proposals(&site, &c2, &g, &ids, &vectors, 24),
+            vec![[2, 1], [2, 0], [3, 1], [1, 1], [2, 2]]
         );
+        assert_eq!(proposals(&site, &c1, &g, &ids, &vectors, 4), vec![[-3, 1]]);
     }
 
     #[test]

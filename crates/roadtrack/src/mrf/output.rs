@@ -1,34 +1,15 @@
 //! Inspection output: the Object-map per frame as a PNG (block colours per id, over the
 //! frame, with each reported box) or as CSV rows `frame,bx,by,id`.
 
-use super::object_map::{BLOCK_PX, NO_OBJECT, ObjectId, ObjectMap};
+use super::object_map::{BLOCK_PX, NO_OBJECT, ObjectMap};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::io::atomic::{write_atomic, write_bytes_atomic};
+use crate::overlay::{draw_box, id_colour};
 use crate::track::TrackPoint;
-use image::{Rgb, RgbImage};
+use image::RgbImage;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// A distinct, stable, bright colour for an object id.
-pub fn id_colour(id: ObjectId) -> [u8; 3] {
-    let mut z = u64::from(id).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z ^= z >> 29;
-    let h = (z % 360) as f64;
-    // HSV with S = 0.8, V = 1.
-    let c = 0.8;
-    let x = c * (1.0 - ((h / 60.0) % 2.0 - 1.0).abs());
-    let (r, g, b) = match (h / 60.0) as u32 {
-        0 => (c, x, 0.0),
-        1 => (x, c, 0.0),
-        2 => (0.0, c, x),
-        3 => (0.0, x, c),
-        4 => (x, 0.0, c),
-        _ => (c, 0.0, x),
-    };
-    let m = 1.0 - c;
-    [r, g, b].map(|v| ((v + m) * 255.0).round() as u8)
-}
 
 /// The Object-map drawn over `frame` (or over black when `None`, at the grid's size): each
 /// labelled block is tinted with its id's colour (half and half), and every point's box is
@@ -47,7 +28,7 @@ pub fn render_object_map(
         if id == NO_OBJECT {
             continue;
         }
-        let c = id_colour(id);
+        let c = id_colour(u64::from(id)).0;
         let (bx, by) = map.grid.coords(i);
         for y in by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h) {
             for x in bx * BLOCK_PX..((bx + 1) * BLOCK_PX).min(w) {
@@ -59,27 +40,7 @@ pub fn render_object_map(
         }
     }
     for p in points {
-        let c = Rgb(id_colour(p.id as ObjectId));
-        let x0 = p.bbox.left.max(0.0) as u32;
-        let y0 = p.bbox.top.max(0.0) as u32;
-        let x1 = (p.bbox.right().max(1.0) as u32 - 1).min(w.saturating_sub(1));
-        let y1 = (p.bbox.bottom().max(1.0) as u32 - 1).min(h.saturating_sub(1));
-        for t in 0..2u32 {
-            for x in x0..=x1 {
-                for y in [y0 + t, y1.saturating_sub(t)] {
-                    if y < h {
-                        img.put_pixel(x, y, c);
-                    }
-                }
-            }
-            for y in y0..=y1 {
-                for x in [x0 + t, x1.saturating_sub(t)] {
-                    if x < w {
-                        img.put_pixel(x, y, c);
-                    }
-                }
-            }
-        }
+        draw_box(&mut img, &p.bbox, id_colour(p.id));
     }
     img
 }
@@ -175,20 +136,14 @@ mod tests {
         };
         let img = render_object_map(&map, None, &[pt]);
         assert_eq!(img.dimensions(), (32, 16));
-        assert_eq!(img.get_pixel(0, 0), &Rgb([0, 0, 0]));
-        assert_eq!(img.get_pixel(8, 0).0, id_colour(5), "box outline");
-        let c = id_colour(2);
+        assert_eq!(img.get_pixel(0, 0), &image::Rgb([0, 0, 0]));
+        assert_eq!(img.get_pixel(8, 0), &id_colour(5), "box outline");
+        let c = id_colour(2).0;
         assert_eq!(img.get_pixel(28, 12).0, c.map(|v| v / 2));
         let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
         let p = dir.path().join("m.png");
         object_map_png(&p, &map, None, &[])?;
         assert!(p.is_file());
         Ok(())
-    }
-
-    #[test]
-    fn colours_differ_between_neighbouring_ids() {
-        assert_ne!(id_colour(1), id_colour(2));
-        assert_eq!(id_colour(7), id_colour(7));
     }
 }

@@ -2,7 +2,9 @@
 //! newly moving blocks, object birth and death.
 
 use super::block_matching::BlockMatch;
-use super::object_map::{BlockGrid, NO_OBJECT, ObjectId, ObjectMap, Vector, blocks_from_px_shift};
+use super::object_map::{
+    BLOCK_PX, BlockGrid, NO_OBJECT, ObjectId, ObjectMap, Vector, blocks_from_px_shift,
+};
 
 /// One candidate id of a block of `X(t)`, with the local vector it arrived with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -13,6 +15,9 @@ pub struct Candidate {
     pub vector: Vector,
     /// That vector's SAD (smaller is a better match).
     pub sad: u32,
+    /// Whether it arrived by the paper's move rounded to whole blocks (Step 2); `false`
+    /// when only the moved square's partial overlap brought it.
+    pub rounded: bool,
 }
 
 /// A block to optimise: it has two or more candidate ids.
@@ -35,11 +40,11 @@ pub struct Propagated {
     pub sites: Vec<Site>,
 }
 
-/// Adds `c` to `list`, keeping one candidate per id: the one with the smaller SAD (the
-/// earlier one on a tie).
+/// Adds `c` to `list`, keeping one candidate per id: a rounded arrival before an overlap
+/// arrival, then the smaller SAD, then the earlier one.
 fn push_candidate(list: &mut Vec<Candidate>, c: Candidate) {
     match list.iter_mut().find(|e| e.id == c.id) {
-        Some(e) if c.sad < e.sad => *e = c,
+        Some(e) if (!c.rounded, c.sad) < (!e.rounded, e.sad) => *e = c,
         Some(_) => {}
         None => list.push(c),
     }
@@ -63,11 +68,18 @@ fn push_candidate(list: &mut Vec<Candidate>, c: Candidate) {
 // growth at its leading edge and loses its trailing blocks as they stop moving.
 // Choice: a block with a single candidate takes it without optimisation (the paper
 // optimises only blocks with several candidate ids).
+// Choice (overlap candidates): besides the rounded target, the moved square also offers its
+// id to every block of X(t) it overlaps by at least `min_overlap_px` pixels. With rounding
+// alone, an object slower than half a block per frame never reaches a block its neighbour
+// holds (both ids move by 0 blocks), so it could never push into a neighbour's region;
+// with overlaps, the boundary blocks between two objects become contested and eq. 5
+// decides them. `min_overlap_px = 65` switches this off (the paper's Step 2 exactly).
 pub fn propagate(
     prev_map: &ObjectMap,
     matches: &[Option<BlockMatch>],
     moving: &[bool],
     border_blocks: u32,
+    min_overlap_px: u32,
 ) -> Propagated {
     let grid = prev_map.grid;
     let n = grid.len();
@@ -76,6 +88,7 @@ pub fn propagate(
         moving.get(i).copied().unwrap_or(false) && !grid.in_border(bx, by, border_blocks)
     };
     let mut lists: Vec<Vec<Candidate>> = vec![Vec::new(); n];
+    let local = local_vectors(prev_map, matches);
     for (s, &id) in prev_map.ids.iter().enumerate() {
         if id == NO_OBJECT {
             continue;
@@ -86,19 +99,38 @@ pub fn propagate(
         let (bx, by) = grid.coords(s);
         let tx = bx as i32 + blocks_from_px_shift(m.vector[0]);
         let ty = by as i32 + blocks_from_px_shift(m.vector[1]);
-        if tx < 0 || ty < 0 || tx >= grid.cols as i32 || ty >= grid.rows as i32 {
-            continue;
-        }
-        let t = grid.index(tx as u32, ty as u32);
-        if allowed(t) {
-            push_candidate(
-                &mut lists[t],
-                Candidate {
-                    id,
-                    vector: m.vector,
-                    sad: m.sad,
-                },
-            );
+        // The moved square's top-left pixel and the blocks it overlaps.
+        let b = BLOCK_PX as i32;
+        let px = (bx * BLOCK_PX) as i32 + i32::from(m.vector[0]);
+        let py = (by * BLOCK_PX) as i32 + i32::from(m.vector[1]);
+        let (cx, cy) = (px.div_euclid(b), py.div_euclid(b));
+        let (rx, ry) = (px.rem_euclid(b), py.rem_euclid(b));
+        for (x, y, area) in [
+            (tx, ty, b * b),
+            (cx, cy, (b - rx) * (b - ry)),
+            (cx + 1, cy, rx * (b - ry)),
+            (cx, cy + 1, (b - rx) * ry),
+            (cx + 1, cy + 1, rx * ry),
+        ] {
+            let rounded = (x, y) == (tx, ty);
+            if area < min_overlap_px as i32 && !rounded {
+                continue;
+            }
+            if x < 0 || y < 0 || x >= grid.cols as i32 || y >= grid.rows as i32 {
+                continue;
+            }
+            let t = grid.index(x as u32, y as u32);
+            if allowed(t) {
+                push_candidate(
+                    &mut lists[t],
+                    Candidate {
+                        id,
+                        vector: local[s].unwrap_or(m.vector),
+                        sad: m.sad,
+                        rounded,
+                    },
+                );
+            }
         }
     }
     // Growth, reading only the propagated lists (one ring).
@@ -130,11 +162,12 @@ pub fn propagate(
             continue;
         }
         list.sort_by_key(|c| c.id);
-        // Choice: the initial state of a contested block is its best-matching candidate
-        // (smallest SAD, then smallest id); the sampler is free to leave it.
+        // Choice: the initial state of a contested block is its best-matching rounded
+        // arrival (smallest SAD, then smallest id), else its best overlap arrival; the
+        // sampler is free to leave it.
         let init = list
             .iter()
-            .min_by_key(|c| (c.sad, c.id))
+            .min_by_key(|c| (!c.rounded, c.sad, c.id))
             .copied()
             .unwrap_or(list[0]);
         ids[t] = init.id;
@@ -151,6 +184,45 @@ pub fn propagate(
         vectors,
         sites,
     }
+}
+
+/// The local vector each labelled block of `X(t − 1)` hands to its candidates: the
+/// component-wise median of the block-matching vectors of the blocks with the same id in its
+/// 3 × 3 neighbourhood (itself included).
+// Choice: a block on an object's edge that already shows an intruding object's texture
+// block-matches with the intruder's vector; handing that raw vector to its id would let the
+// wrong id explain the texture perfectly (D cannot tell the ids apart) and the error would
+// persist. The 3 × 3 same-id median is still a local vector (non-rigid objects keep their
+// spatially varying motion) but follows the object, not the single block — the role eq. 4's
+// smoothness plays in the paper, applied before the sampler.
+pub fn local_vectors(prev_map: &ObjectMap, matches: &[Option<BlockMatch>]) -> Vec<Option<Vector>> {
+    let grid = prev_map.grid;
+    let mut xs: Vec<i16> = Vec::with_capacity(9);
+    let mut ys: Vec<i16> = Vec::with_capacity(9);
+    (0..grid.len())
+        .map(|s| {
+            let id = prev_map.ids[s];
+            let own = matches.get(s).copied().flatten()?;
+            if id == NO_OBJECT {
+                return Some(own.vector);
+            }
+            xs.clear();
+            ys.clear();
+            xs.push(own.vector[0]);
+            ys.push(own.vector[1]);
+            for nb in grid.neighbours8(s).into_iter().flatten() {
+                if let (true, Some(m)) =
+                    (prev_map.ids[nb] == id, matches.get(nb).copied().flatten())
+                {
+                    xs.push(m.vector[0]);
+                    ys.push(m.vector[1]);
+                }
+            }
+            xs.sort_unstable();
+            ys.sort_unstable();
+            Some([xs[xs.len() / 2], ys[ys.len() / 2]])
+        })
+        .collect()
 }
 
 /// Object birth: every 8-connected component of moving, unlabelled, non-border blocks of at
@@ -230,7 +302,7 @@ mod tests {
         for (x, y) in [(5, 4), (4, 6), (3, 5)] {
             moving[g.index(x, y)] = true;
         }
-        let p = propagate(&prev, &matches, &moving, 0);
+        let p = propagate(&prev, &matches, &moving, 0, 65);
         let t = g.index(5, 4);
         assert_eq!(p.sites.len(), 1);
         assert_eq!(p.sites[0].block, t);
@@ -261,10 +333,10 @@ mod tests {
         let mut moving = vec![false; g.len()];
         moving[g.index(4, 4)] = true;
         moving[g.index(2, 4)] = true;
-        let p = propagate(&prev, &matches, &moving, 3);
+        let p = propagate(&prev, &matches, &moving, 3, 65);
         assert_eq!(p.ids.iter().filter(|&&i| i != NO_OBJECT).count(), 1);
         assert_eq!(p.ids[g.index(4, 4)], 1);
-        let p0 = propagate(&prev, &matches, &moving, 0);
+        let p0 = propagate(&prev, &matches, &moving, 0, 65);
         assert_eq!(p0.ids[g.index(2, 4)], 1);
     }
 
@@ -278,13 +350,43 @@ mod tests {
         prev.ids[g.index(5, 3)] = 2;
         matches[g.index(5, 3)] = m([0, 0], 0);
         let moving = vec![true; g.len()];
-        let p = propagate(&prev, &matches, &moving, 0);
+        let p = propagate(&prev, &matches, &moving, 0, 65);
         // (4, 3) touches both: a site with ids 1 and 2.
         let between = p.sites.iter().find(|s| s.block == g.index(4, 3));
         assert_eq!(between.map(|s| s.candidates.len()), Some(2));
         // (2, 3) touches only 1; (1, 3) is two rings away.
         assert_eq!(p.ids[g.index(2, 3)], 1);
         assert_eq!(p.ids[g.index(1, 3)], NO_OBJECT);
+    }
+
+    #[test]
+    fn partial_overlap_offers_the_id_to_the_next_block() {
+        let g = BlockGrid::for_frame(80, 80);
+        let mut prev = ObjectMap::empty(g);
+        let mut matches = vec![None; g.len()];
+        // Id 1 at (4, 4) moving +2 px (rounds to 0 blocks); id 2 holds (5, 4), static.
+        prev.ids[g.index(4, 4)] = 1;
+        matches[g.index(4, 4)] = m([2, 0], 3);
+        prev.ids[g.index(5, 4)] = 2;
+        matches[g.index(5, 4)] = m([0, 0], 0);
+        let moving = vec![true; g.len()];
+        let p = propagate(&prev, &matches, &moving, 0, 16);
+        let site = p.sites.iter().find(|s| s.block == g.index(5, 4));
+        let c = site.map(|s| s.candidates.clone()).unwrap_or_default();
+        assert_eq!(
+            c.len(),
+            2,
+            "2 px × 8 = 16 px overlap makes (5, 4) contested"
+        );
+        assert!(c[0].id == 1 && !c[0].rounded && c[1].id == 2 && c[1].rounded);
+        assert_eq!(
+            p.ids[g.index(5, 4)],
+            2,
+            "the rounded arrival is the initial state"
+        );
+        // With the paper's rounding only, (5, 4) is not contested.
+        let p = propagate(&prev, &matches, &moving, 0, 65);
+        assert!(p.sites.iter().all(|s| s.block != g.index(5, 4)));
     }
 
     #[test]

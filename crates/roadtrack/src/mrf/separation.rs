@@ -51,10 +51,8 @@ pub fn separated(truth: &[TruthRegion], map: &ObjectMap) -> Vec<(u64, u32, bool)
     let mut overlap: BTreeMap<(ObjectId, usize), u32> = BTreeMap::new();
     for (t, r) in truth.iter().enumerate() {
         for &b in &r.visible_blocks {
-            if let Some(&id) = map.ids.get(b) {
-                if id != NO_OBJECT {
-                    *overlap.entry((id, t)).or_insert(0) += 1;
-                }
+            if let Some(&id) = map.ids.get(b).filter(|&&id| id != NO_OBJECT) {
+                *overlap.entry((id, t)).or_insert(0) += 1;
             }
         }
     }
@@ -94,10 +92,9 @@ pub fn separation_curve(
     let mut trials = vec![0u32; max_bin as usize];
     let mut wins = vec![0u32; max_bin as usize];
     for (frame, map) in truth.iter().zip(maps) {
-        let occluded: Vec<TruthRegion> = frame.clone();
-        for ((_, area, ok), r) in separated(&occluded, map)
+        for ((_, area, ok), r) in separated(frame, map)
             .into_iter()
-            .zip(occluded.iter().filter(|r| !r.visible_blocks.is_empty()))
+            .zip(frame.iter().filter(|r| !r.visible_blocks.is_empty()))
         {
             if !r.occluded {
                 continue;

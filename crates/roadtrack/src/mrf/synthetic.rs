@@ -217,6 +217,20 @@ impl SynthSequence {
         )
     }
 
+    /// The empty scene (background and frame-0 sensor noise, no object): a clean sample for
+    /// the background model.
+    pub fn empty_frame(&self) -> RgbImage {
+        let mut img = self.background.clone();
+        if self.scene.noise > 0 {
+            let mut r = rng_for(self.seed, Stream::Render, 1 << 32);
+            let a = i16::from(self.scene.noise);
+            for p in img.iter_mut() {
+                *p = (i16::from(*p) + r.random_range(-a..=a)).clamp(0, 255) as u8;
+            }
+        }
+        img
+    }
+
     /// Frames `1..=n` with their truth.
     pub fn frames(&self, n: u32) -> (Vec<Frame>, Vec<Vec<TruthRegion>>) {
         (1..=n).map(|i| self.frame(i)).unzip()
