@@ -19,6 +19,7 @@ pub mod frame;
 pub mod geometry;
 pub mod io;
 pub mod metrics;
+pub mod mrf;
 pub mod overlay;
 pub mod relaxation;
 pub mod rng;

@@ -1,0 +1,286 @@
+//! Scenario tests of the MRF tracker on small synthetic scenes with known truth.
+
+use super::object_map::{NO_OBJECT, ObjectId, ObjectMap};
+use super::separation::{TruthRegion, separation_curve};
+use super::synthetic::{SynthObject, SynthScene};
+use super::{MrfConfig, MrfTracker, Variant};
+use crate::background::BackgroundModel;
+use crate::error::Result;
+use crate::frame::Frame;
+use image::RgbImage;
+use std::collections::BTreeMap;
+
+/// Tracks `frames` with a background learnt from `empty` (the scene without objects: in a
+/// converging group the median of the sequence itself would hold objects); returns every map.
+pub(crate) fn run(
+    config: &MrfConfig,
+    frames: &[Frame],
+    empty: &RgbImage,
+    seed: u64,
+) -> Result<Vec<ObjectMap>> {
+    let (w, h) = frames[0].size();
+    let mut t = MrfTracker::new(config.clone(), w, h, seed)?;
+    t.set_background(BackgroundModel::from_samples(
+        std::slice::from_ref(empty),
+        config.background.clone(),
+    )?)?;
+    let mut maps = Vec::new();
+    for f in frames {
+        t.step(f)?;
+        maps.push(t.object_map().clone());
+    }
+    Ok(maps)
+}
+
+/// The output id covering most of each truth object's visible blocks (None when none).
+pub(crate) fn dominant_ids(
+    truth: &[TruthRegion],
+    map: &ObjectMap,
+) -> BTreeMap<u64, Option<ObjectId>> {
+    truth
+        .iter()
+        .map(|r| {
+            let mut count: BTreeMap<ObjectId, u32> = BTreeMap::new();
+            for &b in &r.visible_blocks {
+                if map.ids[b] != NO_OBJECT {
+                    *count.entry(map.ids[b]).or_insert(0) += 1;
+                }
+            }
+            let best = count
+                .into_iter()
+                .max_by_key(|&(id, n)| (n, std::cmp::Reverse(id)))
+                .map(|(id, _)| id);
+            (r.id, best)
+        })
+        .collect()
+}
+
+fn obj(id: u64, left: f64, top: f64, w: u32, h: u32, v: (f64, f64), depth: u32) -> SynthObject {
+    SynthObject {
+        id,
+        left_px: left,
+        top_px: top,
+        width_px: w,
+        height_px: h,
+        velocity_px_per_frame: v,
+        depth,
+    }
+}
+
+/// Two 64 × 40 px objects on crossing paths, 16 px apart vertically: the front one hides
+/// 60 % of the back one's height while they pass.
+pub(crate) fn crossing_scene() -> SynthScene {
+    SynthScene {
+        width: 320,
+        height: 160,
+        objects: vec![
+            obj(1, 40.0, 50.0, 64, 40, (4.0, 0.0), 0),
+            obj(2, 216.0, 66.0, 64, 40, (-4.0, 0.0), 1),
+        ],
+        noise: 2,
+    }
+}
+
+/// Three 32 × 80 px "pedestrians" walking side by side to the right; the faster ones
+/// behind catch up and are partly hidden by the slower ones in front (the paper's "moving
+/// side by side" case).
+pub(crate) fn side_by_side_scene() -> SynthScene {
+    SynthScene {
+        width: 400,
+        height: 160,
+        objects: vec![
+            obj(1, 30.0, 40.0, 32, 80, (4.0, 0.0), 2),
+            obj(2, 78.0, 46.0, 32, 80, (3.0, 0.0), 1),
+            obj(3, 126.0, 38.0, 32, 80, (2.0, 0.0), 0),
+        ],
+        noise: 2,
+    }
+}
+
+/// Four 32 × 80 px "pedestrians" converging into a group and passing each other.
+pub(crate) fn group_scene() -> SynthScene {
+    SynthScene {
+        width: 400,
+        height: 160,
+        objects: vec![
+            obj(1, 30.0, 40.0, 32, 80, (4.0, 0.0), 0),
+            obj(2, 100.0, 46.0, 32, 80, (2.0, 0.0), 1),
+            obj(3, 240.0, 38.0, 32, 80, (-2.0, 0.0), 2),
+            obj(4, 320.0, 44.0, 32, 80, (-4.0, 0.0), 3),
+        ],
+        noise: 2,
+    }
+}
+
+#[test]
+fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> {
+    for variant in [Variant::Improved, Variant::Legacy] {
+        let seq = crossing_scene().build(11);
+        let (frames, truth) = seq.frames(44);
+        let cfg = MrfConfig {
+            variant,
+            ..MrfConfig::default()
+        };
+        let maps = run(&cfg, &frames, &seq.empty_frame(), 5)?;
+        let first = dominant_ids(&truth[1], &maps[1]);
+        let last = dominant_ids(&truth[43], &maps[43]);
+        let (a, b) = (first[&1], first[&2]);
+        assert!(
+            a.is_some() && b.is_some() && a != b,
+            "{variant:?}: frame 2 ids {first:?}"
+        );
+        assert_eq!(last[&1], a, "{variant:?}: front object changed id");
+        assert_eq!(last[&2], b, "{variant:?}: back object changed id");
+        // While they overlap, each is still its own region in (nearly) every frame.
+        let curve = separation_curve(&truth, &maps, 1);
+        assert!(curve[0].trials >= 10, "{variant:?}: {curve:?}");
+        assert!(curve[0].success_rate >= 0.95, "{variant:?}: {curve:?}");
+    }
+    Ok(())
+}
+
+#[test]
+fn pedestrian_group_is_not_merged_when_visible_areas_are_at_least_ten_blocks() -> Result<()> {
+    // Only the legacy variant passes today; the improved variant's failure on this scene is
+    // a known gap (docs/MRF.md "Known limitations"; `side_by_side_curves` prints both).
+    #[allow(clippy::single_element_loop)]
+    for variant in [Variant::Legacy] {
+        let seq = side_by_side_scene().build(21);
+        let (frames, truth) = seq.frames(40);
+        let cfg = MrfConfig {
+            variant,
+            ..MrfConfig::default()
+        };
+        let maps = run(&cfg, &frames, &seq.empty_frame(), 9)?;
+        let curve = separation_curve(&truth, &maps, 10);
+        let big = &curve[9];
+        assert!(big.trials >= 20, "{variant:?}: {curve:?}");
+        assert_eq!(
+            big.successes, big.trials,
+            "{variant:?}: a ≥ 10-block object was absorbed: {curve:?}"
+        );
+        let first = dominant_ids(&truth[1], &maps[1]);
+        let distinct: std::collections::BTreeSet<_> = first.values().flatten().collect();
+        assert_eq!(distinct.len(), 3, "{variant:?}: {first:?}");
+    }
+    Ok(())
+}
+
+/// Prints the separation curves of both variants on the side-by-side scene.
+#[test]
+#[ignore = "measurement for docs/MRF.md; prints the separation curves"]
+fn side_by_side_curves() -> Result<()> {
+    for variant in [Variant::Improved, Variant::Legacy] {
+        let seq = side_by_side_scene().build(21);
+        let (frames, truth) = seq.frames(40);
+        let cfg = MrfConfig {
+            variant,
+            ..MrfConfig::default()
+        };
+        let maps = run(&cfg, &frames, &seq.empty_frame(), 9)?;
+        let curve = separation_curve(&truth, &maps, 10);
+        let line: Vec<String> = curve
+            .iter()
+            .map(|b| format!("{}:{}/{}", b.visible_area_blocks, b.successes, b.trials))
+            .collect();
+        eprintln!("side-by-side {variant:?}: {}", line.join(" "));
+    }
+    Ok(())
+}
+
+/// Known limitation (docs/MRF.md): four pedestrians converging and passing through each
+/// other at ±2–4 px/frame; the front object absorbs the others after they cross.
+#[test]
+#[ignore = "known limitation, documented in docs/MRF.md; prints the separation curve"]
+fn converging_group_separation_curve() -> Result<()> {
+    for variant in [Variant::Improved, Variant::Legacy] {
+        let seq = group_scene().build(21);
+        let (frames, truth) = seq.frames(60);
+        let cfg = MrfConfig {
+            variant,
+            ..MrfConfig::default()
+        };
+        let maps = run(&cfg, &frames, &seq.empty_frame(), 9)?;
+        let curve = separation_curve(&truth, &maps, 10);
+        let line: Vec<String> = curve
+            .iter()
+            .map(|b| format!("{}:{}/{}", b.visible_area_blocks, b.successes, b.trials))
+            .collect();
+        eprintln!("converging {variant:?}: {}", line.join(" "));
+    }
+    Ok(())
+}
+
+#[test]
+fn tracking_is_deterministic_at_any_thread_count() -> Result<()> {
+    let seq = group_scene().build(21);
+    let (frames, _) = seq.frames(30);
+    let cfg = MrfConfig::default();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| crate::Error::Invalid(e.to_string()))?;
+    let four = rayon::ThreadPoolBuilder::new()
+        .num_threads(4)
+        .build()
+        .map_err(|e| crate::Error::Invalid(e.to_string()))?;
+    let a = one.install(|| run(&cfg, &frames, &seq.empty_frame(), 3))?;
+    let b = four.install(|| run(&cfg, &frames, &seq.empty_frame(), 3))?;
+    assert_eq!(a, b);
+    Ok(())
+}
+
+/// End to end on `vtest.avi` (first 60 frames): people are tracked; writes an overlay PNG
+/// of the last frame to `$MRF_OVERLAY` when set, for a visual check.
+#[test]
+fn runs_on_vtest_avi_and_tracks_walking_people() -> Result<()> {
+    let path = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/vtest.avi"
+    ));
+    if !path.is_file() || !crate::io::video::ffmpeg_available() {
+        eprintln!("skipped: {} or ffmpeg not available", path.display());
+        return Ok(());
+    }
+    let opts = crate::io::SourceOptions {
+        end: Some(60),
+        ..Default::default()
+    };
+    let frames: Vec<Frame> = crate::io::source::open(path, &opts)?.collect::<Result<_>>()?;
+    let (w, h) = frames[0].size();
+    let cfg = MrfConfig::default();
+    let pos = crate::background::bootstrap_positions(
+        Some(frames.len() as u32),
+        cfg.background.bootstrap_frames,
+    );
+    let samples: Vec<_> = pos
+        .iter()
+        .map(|&p| frames[p as usize].image.clone())
+        .collect();
+    let mut t = MrfTracker::new(cfg.clone(), w, h, 0)?;
+    t.set_background(BackgroundModel::from_samples(
+        &samples,
+        cfg.background.clone(),
+    )?)?;
+    let mut ids_per_frame = Vec::new();
+    let mut last = Vec::new();
+    for f in &frames {
+        last = t.step(f)?;
+        ids_per_frame.push(last.iter().map(|p| p.id).collect::<Vec<_>>());
+    }
+    // Several people are tracked at the end, and most ids seen at frame 30 are still alive.
+    assert!(last.len() >= 4, "only {} objects at frame 60", last.len());
+    let mid: std::collections::BTreeSet<_> = ids_per_frame[29].iter().collect();
+    let end: std::collections::BTreeSet<_> = ids_per_frame[59].iter().collect();
+    let kept = mid.intersection(&end).count();
+    if let Some(out) = std::env::var_os("MRF_OVERLAY") {
+        super::output::object_map_png(
+            std::path::Path::new(&out),
+            t.object_map(),
+            Some(&frames[59].image),
+            &last,
+        )?;
+    }
+    assert!(kept >= 3, "ids at frame 30 {mid:?}, at 60 {end:?}");
+    Ok(())
+}
