@@ -12,6 +12,7 @@ pub mod mot;
 pub mod natural;
 pub mod points;
 pub mod seqinfo;
+pub mod sink;
 pub mod source;
 mod table;
 pub mod trajectories;
