@@ -17,6 +17,7 @@ pub mod frame;
 pub mod geometry;
 pub mod io;
 pub mod overlay;
+pub mod plot;
 pub mod render;
 pub mod rng;
 pub mod track;

@@ -7,11 +7,13 @@
 
 pub mod atomic;
 pub mod detections;
+pub mod geojson;
 pub mod matches;
 pub mod mot;
 pub mod natural;
 pub mod points;
 pub mod seqinfo;
+pub mod series;
 pub mod sink;
 pub mod source;
 mod table;
