@@ -25,6 +25,8 @@ struct Cli {
 enum Command {
     Detect(cmd::detect::Args),
     Bench(cmd::bench::Args),
+    Render(cmd::render::Args),
+    Plot(cmd::plot::Args),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +35,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Detect(args) => cmd::detect::run(args, &ui),
         Command::Bench(args) => cmd::bench::run(args, &ui),
+        Command::Render(args) => cmd::render::run(args, &ui),
+        Command::Plot(args) => cmd::plot::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,3 +2,5 @@
 
 pub mod bench;
 pub mod detect;
+pub mod plot;
+pub mod render;
