@@ -51,7 +51,7 @@ pub struct RenderConfig {
     /// Trail length in frames: centres older than this many frames are dropped (default 30,
     /// 3 s at the 10 frames/s of image folders).
     pub trail_frames: u32,
-    /// Trail width, px (default 2).
+    /// Trail width, px (default 3).
     pub trail_width_px: f32,
     /// Colour boxes and trails by id or by class (default by id).
     pub colour_by: ColourBy,
@@ -70,7 +70,7 @@ impl Default for RenderConfig {
         Self {
             // Choice: the issue leaves the trail length open; 30 frames follows the brief.
             trail_frames: 30,
-            trail_width_px: 2.0,
+            trail_width_px: 3.0,
             colour_by: ColourBy::Id,
             labels: true,
             label_height_px: None,
