@@ -26,6 +26,8 @@ enum Command {
     Detect(cmd::detect::Args),
     Bench(cmd::bench::Args),
     Check(cmd::check::Args),
+    Plot(cmd::plot::Args),
+    Render(cmd::render::Args),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +37,8 @@ fn main() -> ExitCode {
         Command::Detect(args) => cmd::detect::run(args, &ui),
         Command::Bench(args) => cmd::bench::run(args, &ui),
         Command::Check(args) => cmd::check::run(args, &ui),
+        Command::Plot(args) => cmd::plot::run(args, &ui),
+        Command::Render(args) => cmd::render::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -93,6 +93,14 @@ pub enum Error {
         /// The TOML parser's message (it names line and column).
         message: String,
     },
+    /// Drawing a plot failed (a plotting backend or font error).
+    #[error("{}: cannot draw the plot: {message}", path.display())]
+    Plot {
+        /// The plot file.
+        path: PathBuf,
+        /// What the plotting library said.
+        message: String,
+    },
     /// The inputs are consistent individually but cannot be used together.
     #[error("{0}")]
     Invalid(String),

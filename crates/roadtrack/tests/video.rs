@@ -55,3 +55,70 @@ fn a_file_that_is_not_a_video_is_a_clear_error() -> roadtrack::Result<()> {
     assert!(m.contains("notes.avi") && m.contains("ffprobe"), "{m}");
     Ok(())
 }
+
+#[test]
+fn written_videos_decode_to_the_frames_given_and_appear_only_when_finished() -> roadtrack::Result<()>
+{
+    if !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    // Odd size on purpose: yuv420p needs padding to 66 × 41 → 66 × 42.
+    let (w, h) = (65, 41);
+    for ext in ["mp4", "avi"] {
+        let p = dir.path().join(format!("out.{ext}"));
+        let mut writer = video::VideoWriter::create(&p, w, h, 5.0)?;
+        for i in 0..6u8 {
+            // A flat grey level per frame, easy to recognise after lossy coding.
+            let img = image::RgbImage::from_pixel(w, h, image::Rgb([40 * i, 40 * i, 40 * i]));
+            writer.write_frame(u32::from(i) + 1, &img)?;
+        }
+        assert!(!p.exists(), "the video appears only after finish");
+        writer.finish()?;
+        assert!(p.is_file());
+        let src = source::open(&p, &SourceOptions::default())?;
+        assert_eq!((src.info.width, src.info.height), (66, 42), "{ext}");
+        assert!((src.info.fps - 5.0).abs() < 1e-9, "{ext}: {}", src.info.fps);
+        let frames: Vec<_> = src.collect::<roadtrack::Result<_>>()?;
+        assert_eq!(frames.len(), 6, "{ext}");
+        for (i, f) in frames.iter().enumerate() {
+            let v = f.image.get_pixel(30, 20).0[0];
+            let want = 40 * i as i32;
+            assert!(
+                (i32::from(v) - want).abs() <= 6,
+                "{ext} frame {i}: {v} vs {want}"
+            );
+        }
+        // No temporary file is left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .map_err(|e| roadtrack::Error::io("tmp", e))?
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".roadtrack-"))
+            .collect();
+        assert!(names.is_empty(), "{names:?}");
+    }
+    Ok(())
+}
+
+#[test]
+fn a_frame_of_the_wrong_size_and_an_abandoned_video_leave_no_file() -> roadtrack::Result<()> {
+    if !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    let p = dir.path().join("out.mp4");
+    let mut writer = video::VideoWriter::create(&p, 32, 32, 10.0)?;
+    let e = writer
+        .write_frame(1, &image::RgbImage::new(16, 16))
+        .expect_err("wrong size");
+    assert!(e.to_string().contains("frame 1"), "{e}");
+    drop(writer);
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .map_err(|e| roadtrack::Error::io("tmp", e))?
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    Ok(())
+}

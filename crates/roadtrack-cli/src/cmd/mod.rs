@@ -3,3 +3,5 @@
 pub mod bench;
 pub mod check;
 pub mod detect;
+pub mod plot;
+pub mod render;

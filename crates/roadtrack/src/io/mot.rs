@@ -323,6 +323,22 @@ impl MotTrackRow {
     }
 }
 
+impl MotGtRow {
+    /// The row as a [`TrackPoint`]: class from the MOT17 number, visibility as score, time
+    /// from `fps`.
+    pub fn to_track_point(&self, fps: f64) -> TrackPoint {
+        TrackPoint {
+            frame: self.frame,
+            time_s: f64::from(self.frame - 1) / fps,
+            id: self.id,
+            class: crate::ObjectClass::from_mot17_id(i64::from(self.class)),
+            bbox: self.bbox,
+            score: self.visibility,
+            ground: None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

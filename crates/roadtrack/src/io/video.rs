@@ -1,4 +1,5 @@
-//! Video files through the `ffmpeg` program: frames arrive as raw RGB over a pipe.
+//! Video files through the `ffmpeg` program: frames arrive as raw RGB over a pipe
+//! ([`VideoReader`]) and leave the same way ([`VideoWriter`]).
 //!
 //! Size, rate and frame count come from `ffprobe`. This needs no C libraries at build time
 //! and decodes every format the installed ffmpeg knows (DEPENDENCY_NOTES.md §1: about
@@ -7,9 +8,10 @@
 use super::source::SourceOptions;
 use crate::error::{Error, Result};
 use image::RgbImage;
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::sync::OnceLock;
 
 const INSTALL_HINT: &str =
     "install ffmpeg (Debian/Ubuntu: `sudo apt-get install ffmpeg`, or run scripts/setup.sh)";
@@ -50,7 +52,9 @@ fn spawn_error(program: &'static str, e: &std::io::Error) -> Error {
     if e.kind() == std::io::ErrorKind::NotFound {
         Error::External {
             program,
-            message: format!("not found on PATH; it is needed to read video files: {INSTALL_HINT}"),
+            message: format!(
+                "not found on PATH; it is needed to read and write video files: {INSTALL_HINT}"
+            ),
         }
     } else {
         Error::External {
@@ -230,6 +234,284 @@ impl Iterator for VideoReader {
     }
 }
 
+/// The encoders the installed ffmpeg lists (`ffmpeg -encoders`), read once per process.
+fn ffmpeg_encoders() -> Result<&'static str> {
+    static ENCODERS: OnceLock<String> = OnceLock::new();
+    if let Some(e) = ENCODERS.get() {
+        return Ok(e);
+    }
+    let out = Command::new("ffmpeg")
+        .args(["-hide_banner", "-encoders"])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| spawn_error("ffmpeg", &e))?;
+    Ok(ENCODERS.get_or_init(|| String::from_utf8_lossy(&out.stdout).into_owned()))
+}
+
+/// Whether the installed ffmpeg has the encoder `name`.
+fn has_encoder(list: &str, name: &str) -> bool {
+    list.lines()
+        .any(|l| l.split_whitespace().nth(1) == Some(name))
+}
+
+/// The encoder and its options for a container extension, from what ffmpeg has.
+// Choice: H.264 (libx264, CRF 20, preset veryfast) for .mp4/.mkv because every player reads
+// it; MPEG-4 part 2 (q 3) when libx264 is missing and always for .avi; VP9 (libvpx-vp9,
+// CRF 32) or VP8 for .webm, which admits nothing else. All use yuv420p for compatibility.
+fn choose_codec(ext: &str, encoders: &str) -> Result<(&'static str, &'static [&'static str])> {
+    const X264: &[&str] = &["-preset", "veryfast", "-crf", "20"];
+    const MPEG4: &[&str] = &["-q:v", "3"];
+    const VP9: &[&str] = &[
+        "-crf",
+        "32",
+        "-b:v",
+        "0",
+        "-deadline",
+        "realtime",
+        "-cpu-used",
+        "8",
+    ];
+    const VP8: &[&str] = &[
+        "-crf",
+        "10",
+        "-b:v",
+        "2M",
+        "-deadline",
+        "realtime",
+        "-cpu-used",
+        "8",
+    ];
+    let pick = match ext {
+        "mp4" | "mkv" if has_encoder(encoders, "libx264") => Some(("libx264", X264)),
+        "mp4" | "mkv" | "avi" if has_encoder(encoders, "mpeg4") => Some(("mpeg4", MPEG4)),
+        "webm" if has_encoder(encoders, "libvpx-vp9") => Some(("libvpx-vp9", VP9)),
+        "webm" if has_encoder(encoders, "libvpx") => Some(("libvpx", VP8)),
+        _ => None,
+    };
+    pick.ok_or_else(|| Error::External {
+        program: "ffmpeg",
+        message: format!(
+            "has no encoder for .{ext} files (tried libx264/mpeg4 for mp4, mkv, avi and \
+             libvpx-vp9/libvpx for webm); write a PNG folder instead or {INSTALL_HINT}"
+        ),
+    })
+}
+
+/// Encodes RGB frames into a video file by piping them into the `ffmpeg` program.
+///
+/// The video is written to a temporary file next to the destination and renamed over it
+/// only when ffmpeg succeeds ([`VideoWriter::finish`]), so an interrupted run never leaves
+/// a truncated video under the final name. Dropping a writer without finishing kills
+/// ffmpeg and removes the temporary file.
+#[derive(Debug)]
+pub struct VideoWriter {
+    path: PathBuf,
+    tmp: Option<tempfile::TempPath>,
+    child: Option<Child>,
+    stdin: Option<ChildStdin>,
+    stderr: Option<std::thread::JoinHandle<String>>,
+    width: u32,
+    height: u32,
+    frames_written: u32,
+    /// The ffmpeg encoder in use (`libx264`, `mpeg4`, `libvpx-vp9` or `libvpx`).
+    pub codec: &'static str,
+}
+
+impl VideoWriter {
+    /// Starts ffmpeg to encode `width × height` frames at `fps` into `path`, whose
+    /// extension (`mp4`, `mkv`, `avi`, `webm`) picks the container and the encoder.
+    ///
+    /// # Errors
+    /// ffmpeg is missing or has no suitable encoder; the folder cannot be written; a zero
+    /// size or a non-positive rate.
+    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(Error::Invalid(format!(
+                "{}: cannot encode {width}×{height} px frames",
+                path.display()
+            )));
+        }
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(Error::Invalid(format!(
+                "{}: frame rate must be positive, found {fps}",
+                path.display()
+            )));
+        }
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        let (codec, options) = choose_codec(&ext, ffmpeg_encoders()?)?;
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // The temporary keeps the extension: ffmpeg picks the container from it.
+        let tmp = tempfile::Builder::new()
+            .prefix(".roadtrack-")
+            .suffix(&format!(".{ext}"))
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .into_temp_path();
+        let mut cmd = Command::new("ffmpeg");
+        cmd.args(["-hide_banner", "-v", "error", "-y"])
+            .args(["-f", "rawvideo", "-pix_fmt", "rgb24"])
+            .args(["-s", &format!("{width}x{height}")])
+            .args(["-framerate", &format!("{fps}")])
+            .args(["-i", "pipe:0", "-an"])
+            // yuv420p needs even sizes: pad odd ones by one black row or column.
+            .args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"])
+            .args(["-c:v", codec])
+            .args(options)
+            .args(["-pix_fmt", "yuv420p"])
+            // No encoder version or creation time in the file: same frames, same bytes.
+            .args([
+                "-fflags",
+                "+bitexact",
+                "-flags:v",
+                "+bitexact",
+                "-map_metadata",
+                "-1",
+            ])
+            .arg(&*tmp)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
+        let stdin = child.stdin.take();
+        let stderr = child.stderr.take().map(|mut s| {
+            std::thread::spawn(move || {
+                let mut buf = String::new();
+                let _ = s.read_to_string(&mut buf);
+                buf
+            })
+        });
+        Ok(Self {
+            path: path.to_owned(),
+            tmp: Some(tmp),
+            child: Some(child),
+            stdin,
+            stderr,
+            width,
+            height,
+            frames_written: 0,
+            codec,
+        })
+    }
+
+    /// Frames written so far.
+    pub fn frames_written(&self) -> u32 {
+        self.frames_written
+    }
+
+    /// Appends `image`, which must have the size given to [`VideoWriter::create`]; `index`
+    /// (the frame's number) only names the frame in errors.
+    ///
+    /// # Errors
+    /// A frame of another size; ffmpeg stopped (its message is included); writing after
+    /// [`VideoWriter::finish`].
+    pub fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+        if image.dimensions() != (self.width, self.height) {
+            return Err(Error::FrameSize {
+                frame: index,
+                got: image.dimensions(),
+                expected: (self.width, self.height),
+            });
+        }
+        let Some(stdin) = self.stdin.as_mut() else {
+            return Err(Error::Invalid(format!(
+                "{}: frame {index} written after the video was finished",
+                self.path.display()
+            )));
+        };
+        if let Err(e) = stdin.write_all(image.as_raw()) {
+            let why = self
+                .stop()
+                .err()
+                .map_or_else(|| e.to_string(), |f| f.to_string());
+            return Err(Error::External {
+                program: "ffmpeg",
+                message: format!(
+                    "stopped while encoding {} at frame {index}: {why}",
+                    self.path.display()
+                ),
+            });
+        }
+        self.frames_written += 1;
+        Ok(())
+    }
+
+    /// Closes ffmpeg's input, waits for it, and returns its failure with its messages.
+    fn stop(&mut self) -> Result<()> {
+        self.stdin = None;
+        let status = match self.child.take() {
+            Some(mut c) => c.wait().map_err(|e| Error::io(&self.path, e))?,
+            None => return Ok(()),
+        };
+        let stderr = self
+            .stderr
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        if status.success() {
+            Ok(())
+        } else {
+            Err(Error::External {
+                program: "ffmpeg",
+                message: format!(
+                    "failed ({status}) writing {}: {}",
+                    self.path.display(),
+                    stderr.trim()
+                ),
+            })
+        }
+    }
+
+    /// Ends the stream, waits for ffmpeg and moves the video into place. Calling it again
+    /// does nothing.
+    ///
+    /// # Errors
+    /// No frame was written; ffmpeg failed; the rename failed.
+    pub fn finish(&mut self) -> Result<()> {
+        let Some(tmp) = self.tmp.take() else {
+            return Ok(());
+        };
+        self.stop()?;
+        if self.frames_written == 0 {
+            return Err(Error::Invalid(format!(
+                "{}: no frames to write; the video was not created",
+                self.path.display()
+            )));
+        }
+        tmp.persist(&self.path)
+            .map_err(|e| Error::io(&self.path, e.error))?;
+        Ok(())
+    }
+}
+
+impl super::sink::FrameSink for VideoWriter {
+    fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+        VideoWriter::write_frame(self, index, image)
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        VideoWriter::finish(self)
+    }
+}
+
+impl Drop for VideoWriter {
+    fn drop(&mut self) {
+        self.stdin = None;
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+        // `self.tmp`, when still set, removes the unfinished file as it drops.
+    }
+}
+
 impl Drop for VideoReader {
     fn drop(&mut self) {
         self.stdout = None;
@@ -237,5 +519,23 @@ impl Drop for VideoReader {
             let _ = c.kill();
             let _ = c.wait();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIST: &str =
+        " V....D libx264              libx264 H.264\n V.S... mpeg4                MPEG-4 part 2\n";
+
+    #[test]
+    fn codec_follows_the_extension_and_what_ffmpeg_has() -> Result<()> {
+        assert_eq!(choose_codec("mp4", LIST)?.0, "libx264");
+        assert_eq!(choose_codec("avi", LIST)?.0, "mpeg4");
+        assert_eq!(choose_codec("mkv", " V.S... mpeg4   MPEG-4\n")?.0, "mpeg4");
+        let e = choose_codec("webm", LIST).expect_err("no vpx");
+        assert!(e.to_string().contains("webm"), "{e}");
+        Ok(())
     }
 }

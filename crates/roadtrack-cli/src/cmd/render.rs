@@ -1,0 +1,111 @@
+//! `roadtrack render`: boxes, ids, class colours and fading trails over the frames.
+
+use crate::common::{FrameArgs, Ui};
+use anyhow::{Context, Result};
+use roadtrack::io::{read_track_points, read_truth_points, sink, source};
+use roadtrack::render::{ColourBy, RenderConfig, render_sequence};
+use std::path::PathBuf;
+
+/// Draw tracks over the frames: boxes, ids, class colours and fading trails.
+///
+/// With --truth, each output frame shows the tracks (left) and the ground truth (right)
+/// side by side, each half labelled.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "Example:\n  \
+    roadtrack render seq/ --tracks tracks.txt --truth seq/ -o compare.mp4\n  \
+    roadtrack render frames/ --tracks trajectories.csv -o overlay/ --trail 50 --end 200")]
+pub struct Args {
+    /// Video file, folder of numbered images, or MOTChallenge sequence folder.
+    pub input: PathBuf,
+    /// Tracks to draw, read by extension: `.txt` = MOTChallenge tracks file
+    /// (frame,id,bb_left,bb_top,bb_width,bb_height,conf,…); `.csv` = trajectories CSV
+    /// (`roadtrack track --trajectories`, which carries classes).
+    #[arg(long, value_name = "T")]
+    pub tracks: PathBuf,
+    /// Ground truth to show side by side: a MOTChallenge sequence folder (its gt/gt.txt),
+    /// a MOTChallenge gt file, or a trajectories CSV.
+    #[arg(long, value_name = "GT")]
+    pub truth: Option<PathBuf>,
+    /// Output: a name ending in .mp4, .mkv, .avi or .webm writes a video (needs the ffmpeg
+    /// program); anything else is a folder that receives NNNNNN.png per frame.
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Trail length in frames (0 for no trails).
+    #[arg(long, default_value_t = 30, value_name = "N")]
+    pub trail: u32,
+    /// Colour boxes and trails by track id or by class.
+    #[arg(long, value_enum, default_value_t = ColourArg::Id)]
+    pub colour_by: ColourArg,
+    /// Leave out the id/class labels.
+    #[arg(long)]
+    pub no_labels: bool,
+    /// Label text height, px (default: frame height / 40, within 9–18).
+    #[arg(long, value_name = "PX")]
+    pub label_size: Option<f32>,
+    #[command(flatten)]
+    pub frames: FrameArgs,
+}
+
+/// `--colour-by` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ColourArg {
+    /// One colour per track id.
+    Id,
+    /// One colour per class.
+    Class,
+}
+
+pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    let options = args.frames.options();
+    let frames = source::open(&args.input, &options)?;
+    let info = frames.info.clone();
+    let tracks = read_track_points(&args.tracks, info.fps)?;
+    let truth = match &args.truth {
+        Some(p) => Some(read_truth_points(p, info.fps)?),
+        None => None,
+    };
+    let tracks_title = args
+        .tracks
+        .file_name()
+        .map_or("tracks".into(), |n| n.to_string_lossy().into_owned());
+    let config = RenderConfig {
+        trail_frames: args.trail,
+        colour_by: match args.colour_by {
+            ColourArg::Id => ColourBy::Id,
+            ColourArg::Class => ColourBy::Class,
+        },
+        labels: !args.no_labels,
+        label_height_px: args.label_size,
+        tracks_title: format!("tracks: {tracks_title}"),
+        ..RenderConfig::default()
+    };
+    config.validate()?;
+    ui.detail(format!(
+        "{}: {}×{} px, {} fps; {} track points{}",
+        args.input.display(),
+        info.width,
+        info.height,
+        info.fps,
+        tracks.len(),
+        truth
+            .as_ref()
+            .map_or(String::new(), |t| format!(", {} truth points", t.len()))
+    ));
+    // Choice: with --step k the video plays at fps / k, so it runs in real time.
+    let video_fps = info.fps / f64::from(options.step);
+    let mut out = sink::open_sink(&args.output, video_fps)
+        .with_context(|| format!("opening output {}", args.output.display()))?;
+    let bar = ui.progress(info.selected_frames.map(u64::from), "render");
+    let n = render_sequence(
+        frames,
+        &tracks,
+        truth.as_deref(),
+        &config,
+        out.as_mut(),
+        |_| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    out.finish()?;
+    ui.info(format!("{n} frames → {}", args.output.display()));
+    Ok(())
+}
