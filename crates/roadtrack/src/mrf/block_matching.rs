@@ -110,7 +110,7 @@ pub fn sad_row_pair_scalar(a0: u64, a1: u64, b0: u64, b1: u64) -> u32 {
 /// SAD between the block `rows` and the block at `(x, y)` of `data`, abandoned (returning
 /// a value `> bound`) as soon as the partial sum exceeds `bound`.
 #[inline]
-pub(crate) fn sad_bounded(
+pub(crate) fn sad_bounded_with<const SIMD: bool>(
     rows: &[u64; 8],
     data: &[u8],
     stride: usize,
@@ -121,12 +121,29 @@ pub(crate) fn sad_bounded(
     let c = load_rows(data, stride, x, y);
     let mut s = 0u32;
     for p in 0..4 {
-        s += sad_row_pair(rows[2 * p], rows[2 * p + 1], c[2 * p], c[2 * p + 1]);
+        s += if SIMD {
+            sad_row_pair(rows[2 * p], rows[2 * p + 1], c[2 * p], c[2 * p + 1])
+        } else {
+            sad_row_pair_scalar(rows[2 * p], rows[2 * p + 1], c[2 * p], c[2 * p + 1])
+        };
         if s > bound {
             return s;
         }
     }
     s
+}
+
+/// [`sad_bounded_with`] with the fast kernel.
+#[inline]
+pub(crate) fn sad_bounded(
+    rows: &[u64; 8],
+    data: &[u8],
+    stride: usize,
+    x: usize,
+    y: usize,
+    bound: u32,
+) -> u32 {
+    sad_bounded_with::<true>(rows, data, stride, x, y, bound)
 }
 
 /// Full SAD between block `rows` and the block at `(x, y)` of `data`.
@@ -168,6 +185,19 @@ pub fn match_block(
     radius_px: u32,
     guess: Vector,
 ) -> BlockMatch {
+    match_block_with::<true>(prev, cur, bx, by, radius_px, guess)
+}
+
+/// [`match_block`] with the scalar row kernel (`SIMD = false`) or the fast one; the scalar
+/// form exists to measure what the SIMD kernel buys (docs/PERFORMANCE.md "MRF").
+pub fn match_block_with<const SIMD: bool>(
+    prev: &GrayImage,
+    cur: &GrayImage,
+    bx: u32,
+    by: u32,
+    radius_px: u32,
+    guess: Vector,
+) -> BlockMatch {
     let (w, h) = prev.dimensions();
     let stride = w as usize;
     let (x0, y0) = (bx * BLOCK_PX, by * BLOCK_PX);
@@ -192,7 +222,7 @@ pub fn match_block(
     for vy in ylo..=yhi {
         for vx in xlo..=xhi {
             let (x, y) = at(vx, vy);
-            let s = sad_bounded(&rows, data, stride, x, y, best_sad);
+            let s = sad_bounded_with::<SIMD>(&rows, data, stride, x, y, best_sad);
             let v = [vx as i16, vy as i16];
             if s <= best_sad && better(s, v, best_sad, best_v) {
                 best_sad = s;

@@ -284,3 +284,61 @@ fn runs_on_vtest_avi_and_tracks_walking_people() -> Result<()> {
     assert!(kept >= 3, "ids at frame 30 {mid:?}, at 60 {end:?}");
     Ok(())
 }
+
+/// Throughput figures for docs/PERFORMANCE.md "MRF" (run with `--ignored --nocapture`).
+#[test]
+#[ignore = "measurement, prints figures"]
+fn bench_numbers() -> Result<()> {
+    use super::block_matching::{gray_from_rgb, match_block_with};
+    use super::synthetic::SynthScene;
+    // 1. Kernel: scalar vs SSE2 on a 640×480 pair, 300 blocks, ±24 px.
+    let seq = SynthScene::moving_rectangles(640, 480, 12, 1).build(1);
+    let (a, b) = (
+        gray_from_rgb(&seq.frame(1).0.image),
+        gray_from_rgb(&seq.frame(2).0.image),
+    );
+    for simd in [false, true] {
+        let start = std::time::Instant::now();
+        let mut acc = 0u64;
+        for k in 0..300u32 {
+            let (bx, by) = (3 + k % 74, 3 + (k / 74) * 11 % 54);
+            let m = if simd {
+                match_block_with::<true>(&a, &b, bx, by, 24, [0, 0])
+            } else {
+                match_block_with::<false>(&a, &b, bx, by, 24, [0, 0])
+            };
+            acc += u64::from(m.sad);
+        }
+        let s = start.elapsed().as_secs_f64();
+        eprintln!(
+            "kernel simd={simd}: 300 blocks in {:.2} ms ({:.1} µs/block) [{acc}]",
+            s * 1e3,
+            s * 1e6 / 300.0
+        );
+    }
+    // 2. End to end, one thread.
+    for variant in [Variant::Improved, Variant::Legacy] {
+        let cfg = MrfConfig {
+            variant,
+            ..MrfConfig::default()
+        };
+        let (frames, _) = seq.frames(100);
+        let r = super::bench_mrf(&cfg, &frames, 1, 0)?;
+        eprintln!("synthetic 640x480 12 rectangles {variant:?}: {r:?}");
+        let path = std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/vtest.avi"
+        ));
+        if path.is_file() && crate::io::video::ffmpeg_available() {
+            let opts = crate::io::SourceOptions {
+                end: Some(200),
+                ..Default::default()
+            };
+            let frames: Vec<Frame> =
+                crate::io::source::open(path, &opts)?.collect::<Result<_>>()?;
+            let r = super::bench_mrf(&cfg, &frames, 1, 0)?;
+            eprintln!("vtest.avi 768x576 200 frames {variant:?}: {r:?}");
+        }
+    }
+    Ok(())
+}
