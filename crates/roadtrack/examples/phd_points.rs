@@ -10,7 +10,7 @@
 
 use roadtrack::filter::points::{PointFilterConfig, filter_points};
 use roadtrack::filter::scenario::{PointScenarioConfig, simulate_points};
-use roadtrack::io::points::{write_estimates, write_measurements};
+use roadtrack::io::points::{read_measurements, write_estimates, write_measurements};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -34,7 +34,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     write_estimates(&out.join("truth.csv"), &scenario.truth)?;
     let cfg = scenario_filter_config(&sc, particles);
     let t0 = Instant::now();
-    let est = filter_points(&scenario.measurements, &cfg, seed)?;
+    // Filter the measurements as written (6 decimals), exactly what `roadtrack filter` and
+    // scripts/stonesoup_compare.py read.
+    let measurements = read_measurements(&out.join("measurements.csv"))?;
+    let est = filter_points(&measurements, &cfg, seed)?;
     let secs = t0.elapsed().as_secs_f64();
     write_estimates(&out.join("estimates.csv"), &est)?;
     let mut abs_err = 0.0;

@@ -260,3 +260,166 @@ fn bounding_region(ms: &[Measurement]) -> Region {
     let py = (0.1 * (y1 - y0)).max(1.0);
     Region::new(x0 - px, y0 - py, x1 + px, y1 + py)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::scenario::{PointScenarioConfig, simulate_points};
+    use super::*;
+
+    /// OSPA distance (Schuhmacher et al. 2008) of order 1 with cut-off `c`, by brute-force
+    /// assignment over permutations of the smaller set (sets here have ≤ 8 points).
+    // Test-only helper; the metrics module owns the library OSPA.
+    fn ospa(a: &[Point], b: &[Point], c: f64) -> f64 {
+        let (small, large) = if a.len() <= b.len() { (a, b) } else { (b, a) };
+        if large.is_empty() {
+            return 0.0;
+        }
+        fn best(small: &[Point], large: &[Point], used: &mut Vec<bool>, k: usize, c: f64) -> f64 {
+            if k == small.len() {
+                return 0.0;
+            }
+            let mut m = f64::INFINITY;
+            for j in 0..large.len() {
+                if !used[j] {
+                    used[j] = true;
+                    let d = small[k].distance(large[j]).min(c);
+                    m = m.min(d + best(small, large, used, k + 1, c));
+                    used[j] = false;
+                }
+            }
+            m
+        }
+        let mut used = vec![false; large.len()];
+        let cost = best(small, large, &mut used, 0, c);
+        (cost + c * (large.len() - small.len()) as f64) / large.len() as f64
+    }
+
+    fn matched(sc: &PointScenarioConfig) -> PointFilterConfig {
+        PointFilterConfig {
+            region: Some(sc.region),
+            detection_prob: sc.detection_prob,
+            survival_prob: sc.survival_prob,
+            clutter_rate: sc.clutter_rate,
+            birth_rate: sc.birth_rate,
+            measurement_sigma: sc.measurement_sigma,
+            process_sigma: sc.process_sigma,
+            birth_speed_sigma: sc.initial_speed_sigma,
+            ..PointFilterConfig::default()
+        }
+    }
+
+    #[test]
+    fn phd_count_and_positions_track_the_truth_of_a_simulated_scenario() -> Result<()> {
+        let sc = PointScenarioConfig {
+            steps: 60,
+            ..Default::default()
+        };
+        let scenario = simulate_points(&sc, 11)?;
+        let est = filter_points(&scenario.measurements, &matched(&sc), 11)?;
+        let (mut count_err, mut ospa_sum) = (0.0, 0.0);
+        for step in 1..=sc.steps {
+            let truth: Vec<Point> = scenario
+                .truth
+                .iter()
+                .filter(|t| t.step == step)
+                .map(|t| t.pos)
+                .collect();
+            let mine: Vec<Point> = est
+                .iter()
+                .filter(|e| e.step == step)
+                .map(|e| e.pos)
+                .collect();
+            count_err += (truth.len() as f64 - mine.len() as f64).abs();
+            ospa_sum += ospa(&truth, &mine, 20.0);
+        }
+        let (count_err, mean_ospa) = (count_err / sc.steps as f64, ospa_sum / sc.steps as f64);
+        // Missed detections (10 %) alone drop a target below the report weight on ~10 % of
+        // steps, and new targets take 2–3 steps to confirm.
+        assert!(count_err < 1.3, "mean |count error| {count_err:.2}");
+        assert!(mean_ospa < 8.0, "mean OSPA(c = 20, p = 1) {mean_ospa:.2}");
+        Ok(())
+    }
+
+    /// The committed estimates behind the Stone Soup comparison table are what the code
+    /// produces now (regenerate with the command in tests/golden/filter/README.md).
+    #[test]
+    fn committed_comparison_estimates_match_the_filter() -> Result<()> {
+        let dir = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/filter"));
+        let ms = crate::io::points::read_measurements(&dir.join("measurements.csv"))?;
+        let est = filter_points(&ms, &matched(&PointScenarioConfig::default()), 7)?;
+        let tmp = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+        let mine = tmp.path().join("e.csv");
+        crate::io::points::write_estimates(&mine, &est)?;
+        let a = std::fs::read_to_string(&mine).map_err(|e| Error::io(&mine, e))?;
+        let golden = dir.join("estimates.csv");
+        let b = std::fs::read_to_string(&golden).map_err(|e| Error::io(&golden, e))?;
+        assert!(
+            a == b,
+            "estimates.csv differs; see tests/golden/filter/README.md"
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn point_filter_is_deterministic_at_any_thread_count() -> Result<()> {
+        let sc = PointScenarioConfig {
+            steps: 25,
+            ..Default::default()
+        };
+        let scenario = simulate_points(&sc, 3)?;
+        let run = |threads: usize| -> Result<Vec<PointEstimate>> {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| Error::Invalid(e.to_string()))?;
+            pool.install(|| filter_points(&scenario.measurements, &matched(&sc), 3))
+        };
+        let one = run(1)?;
+        assert!(!one.is_empty());
+        assert_eq!(one, run(4)?);
+        assert_ne!(
+            one,
+            filter_points(&scenario.measurements, &matched(&sc), 4)?
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn progress_is_reported_for_every_step_and_bad_input_is_rejected() -> Result<()> {
+        let ms = [
+            Measurement {
+                step: 3,
+                pos: Point::new(1.0, 1.0),
+            },
+            Measurement {
+                step: 6,
+                pos: Point::new(2.0, 1.0),
+            },
+        ];
+        let mut calls = Vec::new();
+        filter_points_with_progress(&ms, &PointFilterConfig::default(), 0, &mut |d, t| {
+            calls.push((d, t))
+        })?;
+        assert_eq!(calls, vec![(1, 4), (2, 4), (3, 4), (4, 4)]);
+        let bad = [Measurement {
+            step: 1,
+            pos: Point::new(f64::NAN, 0.0),
+        }];
+        assert!(filter_points(&bad, &PointFilterConfig::default(), 0).is_err());
+        let cfg = PointFilterConfig {
+            measurement_sigma: 0.0,
+            ..Default::default()
+        };
+        assert!(filter_points(&ms, &cfg, 0).is_err());
+        assert!(filter_points(&[], &PointFilterConfig::default(), 0)?.is_empty());
+        Ok(())
+    }
+
+    #[test]
+    fn ospa_helper_is_zero_for_equal_sets_and_c_for_a_missing_point() {
+        let a = [Point::new(0.0, 0.0), Point::new(5.0, 5.0)];
+        assert_eq!(ospa(&a, &a, 10.0), 0.0);
+        assert_eq!(ospa(&a[..1], &a, 10.0), 5.0);
+        assert_eq!(ospa(&[], &[], 10.0), 0.0);
+    }
+}

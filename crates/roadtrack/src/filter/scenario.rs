@@ -201,3 +201,31 @@ mod tests {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod golden {
+    use super::*;
+    use crate::io::points::{write_estimates, write_measurements};
+
+    /// The committed Stone Soup comparison scenario is exactly the generator's output
+    /// (`cargo run -p roadtrack --example phd_points -- crates/roadtrack/tests/golden/filter 7`).
+    #[test]
+    fn committed_comparison_scenario_matches_the_generator() -> Result<()> {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/filter");
+        let s = simulate_points(&PointScenarioConfig::default(), 7)?;
+        let tmp = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+        let (m, t) = (tmp.path().join("m.csv"), tmp.path().join("t.csv"));
+        write_measurements(&m, &s.measurements)?;
+        write_estimates(&t, &s.truth)?;
+        for (mine, name) in [(m, "measurements.csv"), (t, "truth.csv")] {
+            let golden = std::path::Path::new(dir).join(name);
+            let a = std::fs::read_to_string(&mine).map_err(|e| Error::io(&mine, e))?;
+            let b = std::fs::read_to_string(&golden).map_err(|e| Error::io(&golden, e))?;
+            assert!(
+                a == b,
+                "{name} differs from the generator; see tests/golden/filter/README.md"
+            );
+        }
+        Ok(())
+    }
+}
