@@ -121,7 +121,7 @@ impl ConstantVelocity {
 
     /// Moves every particle (flat arrays of equal length) by one step, in parallel.
     ///
-    /// Chunk `c` of [`super::CHUNK`] particles draws from `rng_for(seed, stream, key(step, c))`,
+    /// Each chunk of 256 particles draws from `rng_for(seed, stream, key(step, c))`,
     /// so the result does not depend on the number of threads.
     #[allow(clippy::too_many_arguments)]
     pub fn propagate(
