@@ -7,7 +7,7 @@
 //! - [`phd`]: the labelled SMC-PHD filter (steps a–f, eqs. 11–13), on images through a
 //!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
 //! - [`scenario`]: a seeded point-target scenario generator with known truth.
-//! - [`bench`](self::bench): per-stage timings for `roadtrack bench`.
+//! - [`bench`](mod@bench): per-stage timings for `roadtrack bench`.
 //!
 //! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
 //! component, never one heap object per particle.
