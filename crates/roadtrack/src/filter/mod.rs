@@ -1,0 +1,210 @@
+//! Particle filter and labelled SMC-PHD filter (Ishii, Seo & Fuse; METHODS.md §3, seed 004).
+//!
+//! - [`motion`]: the constant-velocity system model (eq. 4), with velocity noise
+//!   proportional to speed or absolute.
+//! - [`resample`]: systematic and stratified resampling.
+//! - [`particle`]: the basic particle filter, `ρ` particles per object.
+//! - [`phd`]: the labelled SMC-PHD filter (steps a–f, eqs. 11–13), on images through a
+//!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
+//! - [`scenario`]: a seeded point-target scenario generator with known truth.
+//! - [`bench`](mod@bench): per-stage timings for `roadtrack bench`.
+//!
+//! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
+//! component, never one heap object per particle.
+
+pub mod bench;
+pub mod motion;
+pub mod particle;
+pub mod phd;
+pub mod points;
+pub mod resample;
+pub mod scenario;
+
+pub use motion::{ConstantVelocity, VelocityNoise};
+pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
+pub use phd::{LabelledPhd, PhdConfig, PhdTracker};
+pub use points::{PointFilterConfig, filter_points};
+pub use resample::ResamplingScheme;
+
+use crate::geometry::Point;
+use serde::{Deserialize, Serialize};
+
+/// A rectangular region of the state space: `[x0, x1] × [y0, y1]` (image px or any units).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Region {
+    /// Left edge.
+    pub x0: f64,
+    /// Top edge.
+    pub y0: f64,
+    /// Right edge.
+    pub x1: f64,
+    /// Bottom edge.
+    pub y1: f64,
+}
+
+impl Region {
+    /// The region `[x0, x1] × [y0, y1]`.
+    pub const fn new(x0: f64, y0: f64, x1: f64, y1: f64) -> Self {
+        Self { x0, y0, x1, y1 }
+    }
+
+    /// The whole image of `width × height` px.
+    pub fn image(width: u32, height: u32) -> Self {
+        Self::new(0.0, 0.0, f64::from(width), f64::from(height))
+    }
+
+    /// Width.
+    pub fn width(&self) -> f64 {
+        self.x1 - self.x0
+    }
+
+    /// Height.
+    pub fn height(&self) -> f64 {
+        self.y1 - self.y0
+    }
+
+    /// Area.
+    pub fn area(&self) -> f64 {
+        self.width() * self.height()
+    }
+
+    /// Whether `p` is inside (edges included).
+    pub fn contains(&self, p: Point) -> bool {
+        p.x >= self.x0 && p.x <= self.x1 && p.y >= self.y0 && p.y <= self.y1
+    }
+
+    /// Whether the region has positive, finite width and height.
+    pub fn is_valid(&self) -> bool {
+        [self.x0, self.y0, self.x1, self.y1]
+            .iter()
+            .all(|v| v.is_finite())
+            && self.x1 > self.x0
+            && self.y1 > self.y0
+    }
+}
+
+/// Particles as a struct of arrays: state `(x, y, v_x, v_y)`, weight, label and the last
+/// likelihood `h(y | x)`, each in its own flat vector of equal length.
+///
+/// Velocities are in units per unit time (per frame in image trackers, where `dt = 1`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Particles {
+    /// Positions, x.
+    pub x: Vec<f64>,
+    /// Positions, y.
+    pub y: Vec<f64>,
+    /// Velocities, x.
+    pub vx: Vec<f64>,
+    /// Velocities, y.
+    pub vy: Vec<f64>,
+    /// Weights (not normalised in the PHD filter: they sum to the expected count).
+    pub w: Vec<f64>,
+    /// Labels; 0 means unlabelled (METHODS.md §3 e).
+    pub label: Vec<u32>,
+    /// The likelihood `h(y | x)` of the last update, in `[0, 1]`.
+    pub h: Vec<f64>,
+}
+
+impl Particles {
+    /// An empty set with room for `n` particles.
+    pub fn with_capacity(n: usize) -> Self {
+        Self {
+            x: Vec::with_capacity(n),
+            y: Vec::with_capacity(n),
+            vx: Vec::with_capacity(n),
+            vy: Vec::with_capacity(n),
+            w: Vec::with_capacity(n),
+            label: Vec::with_capacity(n),
+            h: Vec::with_capacity(n),
+        }
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Whether there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Appends one particle.
+    pub fn push(&mut self, pos: Point, vel: Point, w: f64, label: u32) {
+        self.x.push(pos.x);
+        self.y.push(pos.y);
+        self.vx.push(vel.x);
+        self.vy.push(vel.y);
+        self.w.push(w);
+        self.label.push(label);
+        self.h.push(0.0);
+    }
+
+    /// Removes every particle.
+    pub fn clear(&mut self) {
+        self.x.clear();
+        self.y.clear();
+        self.vx.clear();
+        self.vy.clear();
+        self.w.clear();
+        self.label.clear();
+        self.h.clear();
+    }
+
+    /// Position of particle `i`.
+    pub fn pos(&self, i: usize) -> Point {
+        Point::new(self.x[i], self.y[i])
+    }
+
+    /// Positions of all particles, in order (the batch handed to a likelihood).
+    pub fn positions_into(&self, out: &mut Vec<Point>) {
+        out.clear();
+        out.extend(self.x.iter().zip(&self.y).map(|(&x, &y)| Point::new(x, y)));
+    }
+
+    /// Sum of weights (the PHD filter's expected object count).
+    pub fn total_weight(&self) -> f64 {
+        self.w.iter().sum()
+    }
+
+    /// Keeps the particles at `ancestors` (with repetition), each with weight `weight`.
+    pub fn select(&mut self, ancestors: &[usize], weight: f64) {
+        fn pick<T: Copy>(v: &mut Vec<T>, idx: &[usize]) {
+            let new: Vec<T> = idx.iter().map(|&i| v[i]).collect();
+            *v = new;
+        }
+        pick(&mut self.x, ancestors);
+        pick(&mut self.y, ancestors);
+        pick(&mut self.vx, ancestors);
+        pick(&mut self.vy, ancestors);
+        pick(&mut self.label, ancestors);
+        pick(&mut self.h, ancestors);
+        self.w.clear();
+        self.w.resize(ancestors.len(), weight);
+    }
+
+    /// Weighted mean position and velocity of the particles with indices in `idx`, and their
+    /// total weight; `None` when the total weight is not positive.
+    pub fn weighted_mean(&self, idx: impl Iterator<Item = usize>) -> Option<(Point, Point, f64)> {
+        let (mut sw, mut sx, mut sy, mut svx, mut svy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for i in idx {
+            let w = self.w[i];
+            sw += w;
+            sx += w * self.x[i];
+            sy += w * self.y[i];
+            svx += w * self.vx[i];
+            svy += w * self.vy[i];
+        }
+        (sw > 0.0 && sw.is_finite()).then(|| {
+            (
+                Point::new(sx / sw, sy / sw),
+                Point::new(svx / sw, svy / sw),
+                sw,
+            )
+        })
+    }
+}
+
+/// Chunk length for parallel loops over particles. Fixed, so that per-chunk random streams
+/// and reductions do not depend on the thread count.
+pub(crate) const CHUNK: usize = 256;
