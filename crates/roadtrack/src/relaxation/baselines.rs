@@ -50,7 +50,7 @@ pub fn nearest_neighbour(
 /// paper's ~50 vehicles per pair, not meant for the 100 000 of the scale benchmark).
 ///
 /// # Errors
-/// From [`LabelGraph::new`].
+/// From [`LabelGraph::new`]; a component larger than [`MAX_COMPONENT`].
 pub fn optimal_assignment(
     frame1: &[Detection],
     frame2: &[Detection],
@@ -97,6 +97,12 @@ pub fn optimal_assignment(
         }
         let (a, b) = (rows.len(), cols.len());
         let size = a + b;
+        if size > MAX_COMPONENT {
+            return Err(crate::Error::Invalid(format!(
+                "optimal assignment: {size} vehicles are linked through their gates; the dense \
+                 baseline handles at most {MAX_COMPONENT} per component"
+            )));
+        }
         let mut cost = vec![FORBIDDEN; size * size];
         let col_of: std::collections::HashMap<usize, usize> =
             cols.iter().enumerate().map(|(c, &k)| (k, c)).collect();
@@ -123,6 +129,10 @@ pub fn optimal_assignment(
     }
     Ok(partner)
 }
+
+/// Largest connected component (vehicles of both frames) the dense assignment accepts:
+/// its matrix is `size²` values and the method `O(size³)`.
+pub const MAX_COMPONENT: usize = 4096;
 
 /// Cost of a forbidden pair: larger than any sum of allowed costs we build.
 const FORBIDDEN: f64 = 1e15;
