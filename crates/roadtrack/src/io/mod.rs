@@ -10,6 +10,7 @@ pub mod detections;
 pub mod matches;
 pub mod mot;
 pub mod natural;
+pub mod occlusion;
 pub mod points;
 pub mod seqinfo;
 pub mod source;

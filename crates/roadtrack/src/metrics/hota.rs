@@ -244,10 +244,10 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
         row_sum.extend((0..ng).map(|g| (0..nt).map(|t| fr.similarity(g, t)).sum::<f64>()));
         col_sum.clear();
         col_sum.extend((0..nt).map(|t| (0..ng).map(|g| fr.similarity(g, t)).sum::<f64>()));
-        for g in 0..ng {
-            for t in 0..nt {
+        for (g, &rs) in row_sum.iter().enumerate() {
+            for (t, &cs) in col_sum.iter().enumerate() {
                 let s = fr.similarity(g, t);
-                let denom = col_sum[t] + row_sum[g] - s;
+                let denom = cs + rs - s;
                 if denom > EPS && s != 0.0 {
                     *potential.entry((fr.gt[g], fr.tr[t])).or_insert(0.0) += s / denom;
                 }
@@ -305,9 +305,9 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
             }
         }
     }
-    for a in 0..N_ALPHA {
+    for (a, counts) in matches_counts.iter().enumerate() {
         let (mut ass_a, mut ass_re, mut ass_pr) = (0.0, 0.0, 0.0);
-        let mut entries: Vec<(&(usize, usize), &f64)> = matches_counts[a].iter().collect();
+        let mut entries: Vec<(&(usize, usize), &f64)> = counts.iter().collect();
         entries.sort_by_key(|(k, _)| **k);
         for (&(g, t), &m) in entries {
             let (gc, tc) = (gt_id_count[g], tr_id_count[t]);
