@@ -11,6 +11,7 @@ pub mod geojson;
 pub mod matches;
 pub mod mot;
 pub mod natural;
+pub mod occlusion;
 pub mod points;
 pub mod seqinfo;
 pub mod series;

@@ -59,6 +59,52 @@ pub fn max_score_assignment(
     linear_sum_assignment(&negated, n_rows, n_cols)
 }
 
+/// The pairs with a positive score in SciPy's maximum-score assignment
+/// (`linear_sum_assignment(-score)`, then the pairs whose score is above 0), sorted by row.
+///
+/// Fast path, exact whatever the solver's tie-breaking: when every row and every column
+/// holds at most one positive score, each positive pair is in *every* optimal assignment
+/// (dropping it loses a positive score and gains nothing, since its row and column have no
+/// other positive entry), so the answer is the positive pairs themselves. Only frames where
+/// boxes compete run the solver, on the full matrix as TrackEval does.
+///
+/// # Errors
+/// As [`linear_sum_assignment`].
+pub fn positive_max_score_pairs(
+    score: &[f64],
+    n_rows: usize,
+    n_cols: usize,
+) -> Result<Vec<(usize, usize)>> {
+    if score.len() != n_rows * n_cols {
+        return linear_sum_assignment(score, n_rows, n_cols);
+    }
+    let mut row_count = vec![0u32; n_rows];
+    let mut col_count = vec![0u32; n_cols];
+    let mut pairs = Vec::new();
+    let mut competing = false;
+    for i in 0..n_rows {
+        for j in 0..n_cols {
+            let s = score[i * n_cols + j];
+            if s.is_nan() || s.is_infinite() {
+                return linear_sum_assignment(score, n_rows, n_cols);
+            }
+            if s > 0.0 {
+                row_count[i] += 1;
+                col_count[j] += 1;
+                competing |= row_count[i] > 1 || col_count[j] > 1;
+                pairs.push((i, j));
+            }
+        }
+    }
+    if !competing {
+        return Ok(pairs);
+    }
+    Ok(max_score_assignment(score, n_rows, n_cols)?
+        .into_iter()
+        .filter(|&(i, j)| score[i * n_cols + j] > 0.0)
+        .collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -134,6 +180,31 @@ mod tests {
             linear_sum_assignment(&[1.0, 0.0, 0.0, 1.0, 5.0, 5.0], 3, 2)?,
             [(0, 1), (1, 0)]
         );
+        Ok(())
+    }
+
+    #[test]
+    fn fast_path_gives_the_solver_s_positive_pairs() -> Result<()> {
+        let mut r = rng(12, Stream::Synthetic);
+        for _ in 0..500 {
+            let n_rows = r.random_range(0..7usize);
+            let n_cols = r.random_range(0..7usize);
+            // Sparse non-negative scores with ties, as IoU-like matrices.
+            let score: Vec<f64> = (0..n_rows * n_cols)
+                .map(|_| {
+                    if r.random_range(0..4u8) == 0 {
+                        f64::from(r.random_range(1..3u8))
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let full: Vec<(usize, usize)> = max_score_assignment(&score, n_rows, n_cols)?
+                .into_iter()
+                .filter(|&(i, j)| score[i * n_cols + j] > 0.0)
+                .collect();
+            assert_eq!(positive_max_score_pairs(&score, n_rows, n_cols)?, full);
+        }
         Ok(())
     }
 

@@ -14,7 +14,7 @@
 //! Frag = Σ_objects (number of times tracking (re)starts − 1)
 //! ```
 
-use super::assignment::max_score_assignment;
+use super::assignment::positive_max_score_pairs;
 use super::preprocess::{EPS, EvalSequence};
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
@@ -199,7 +199,7 @@ pub(crate) fn clear(seq: &EvalSequence, threshold: f64) -> Result<ClearMetrics> 
                 score.push(if s < threshold - EPS { 0.0 } else { bonus + s });
             }
         }
-        let matches: Vec<(usize, usize)> = max_score_assignment(&score, ng, nt)?
+        let matches: Vec<(usize, usize)> = positive_max_score_pairs(&score, ng, nt)?
             .into_iter()
             .filter(|&(gi, ti)| score[gi * nt + ti] > EPS)
             .collect();

@@ -33,7 +33,7 @@ fn compare(path: &str, expected: &Value, actual: &Value, out: &mut Vec<String>) 
                 e.as_f64().unwrap_or(f64::NAN),
                 a.as_f64().unwrap_or(f64::NAN),
             );
-            if !((e - a).abs() <= 1e-6) {
+            if (e - a).abs() > 1e-6 || e.is_nan() || a.is_nan() {
                 out.push(format!("{path}: TrackEval {e}, ours {a}"));
             }
         }

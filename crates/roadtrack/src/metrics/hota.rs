@@ -15,11 +15,11 @@
 //! The reported scalars are means over the 19 values of α; `HOTA(0)` and `LocA(0)` are the
 //! values at α = 0.05 and `HOTALocA(0)` their product.
 
-use super::assignment::max_score_assignment;
+use super::FastMap as HashMap;
+use super::assignment::positive_max_score_pairs;
 use super::preprocess::{EPS, EvalSequence};
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// Number of localisation thresholds α.
 pub const N_ALPHA: usize = 19;
@@ -233,7 +233,7 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
     }
     let (ng_ids, nt_ids) = (seq.n_gt_ids, seq.n_tr_ids);
     // Pass 1: soft overlap counts per id pair, and the number of frames of each id.
-    let mut potential: HashMap<(usize, usize), f64> = HashMap::new();
+    let mut potential: HashMap<(usize, usize), f64> = HashMap::default();
     let mut gt_id_count = vec![0.0; ng_ids];
     let mut tr_id_count = vec![0.0; nt_ids];
     let mut row_sum = Vec::new();
@@ -244,10 +244,10 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
         row_sum.extend((0..ng).map(|g| (0..nt).map(|t| fr.similarity(g, t)).sum::<f64>()));
         col_sum.clear();
         col_sum.extend((0..nt).map(|t| (0..ng).map(|g| fr.similarity(g, t)).sum::<f64>()));
-        for g in 0..ng {
-            for t in 0..nt {
+        for (g, &rs) in row_sum.iter().enumerate() {
+            for (t, &cs) in col_sum.iter().enumerate() {
                 let s = fr.similarity(g, t);
-                let denom = col_sum[t] + row_sum[g] - s;
+                let denom = cs + rs - s;
                 if denom > EPS && s != 0.0 {
                     *potential.entry((fr.gt[g], fr.tr[t])).or_insert(0.0) += s / denom;
                 }
@@ -268,7 +268,9 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
     };
     // Pass 2: per-frame matching and counts per α.
     let alpha = alphas();
-    let mut matches_counts: Vec<HashMap<(usize, usize), f64>> = vec![HashMap::new(); N_ALPHA];
+    // For each id pair, how many frames it was matched with IoU passing exactly the first
+    // k thresholds (k = 1..=19); a match passing α_k passes every smaller α.
+    let mut passed: HashMap<(usize, usize), [f64; N_ALPHA]> = HashMap::default();
     let mut score = Vec::new();
     for fr in &seq.frames {
         let (ng, nt) = (fr.gt.len(), fr.tr.len());
@@ -282,43 +284,60 @@ pub(crate) fn hota(seq: &EvalSequence) -> Result<HotaMetrics> {
         score.clear();
         for g in 0..ng {
             for t in 0..nt {
-                score.push(alignment(fr.gt[g], fr.tr[t]) * fr.similarity(g, t));
+                let s = fr.similarity(g, t);
+                score.push(if s == 0.0 {
+                    0.0
+                } else {
+                    alignment(fr.gt[g], fr.tr[t]) * s
+                });
             }
         }
-        let pairs = max_score_assignment(&score, ng, nt)?;
-        for a in 0..N_ALPHA {
-            let mut k = 0usize;
-            let mut loc = 0.0;
-            for &(g, t) in &pairs {
-                let s = fr.similarity(g, t);
-                if s >= alpha[a] - EPS {
-                    k += 1;
-                    loc += s;
-                    *matches_counts[a].entry((fr.gt[g], fr.tr[t])).or_insert(0.0) += 1.0;
-                }
+        // Pairs with score 0 have IoU 0 and pass no threshold.
+        let pairs = positive_max_score_pairs(&score, ng, nt)?;
+        let mut k_at = [0usize; N_ALPHA];
+        let mut loc_at = [0.0; N_ALPHA];
+        for &(g, t) in &pairs {
+            let s = fr.similarity(g, t);
+            let k = alpha.iter().take_while(|&&a| s >= a - EPS).count();
+            if k > 0 {
+                passed.entry((fr.gt[g], fr.tr[t])).or_insert([0.0; N_ALPHA])[k - 1] += 1.0;
             }
+            for a in 0..k {
+                k_at[a] += 1;
+                loc_at[a] += s;
+            }
+        }
+        for a in 0..N_ALPHA {
+            let k = k_at[a];
             c.HOTA_TP[a] += k as f64;
             c.HOTA_FN[a] += (ng - k) as f64;
             c.HOTA_FP[a] += (nt - k) as f64;
             if k > 0 {
-                c.LocA[a] += loc;
+                c.LocA[a] += loc_at[a];
+            }
+        }
+    }
+    let mut entries: Vec<((usize, usize), [f64; N_ALPHA])> = passed.into_iter().collect();
+    entries.sort_unstable_by_key(|(k, _)| *k);
+    let (mut ass_a, mut ass_re, mut ass_pr) = ([0.0; N_ALPHA], [0.0; N_ALPHA], [0.0; N_ALPHA]);
+    for ((g, t), hist) in entries {
+        let (gc, tc) = (gt_id_count[g], tr_id_count[t]);
+        // Matches at α_a = frames that passed at least a + 1 thresholds.
+        let mut m = 0.0;
+        for a in (0..N_ALPHA).rev() {
+            m += hist[a];
+            if m > 0.0 {
+                ass_a[a] += m * (m / (gc + tc - m).max(1.0));
+                ass_re[a] += m * (m / gc.max(1.0));
+                ass_pr[a] += m * (m / tc.max(1.0));
             }
         }
     }
     for a in 0..N_ALPHA {
-        let (mut ass_a, mut ass_re, mut ass_pr) = (0.0, 0.0, 0.0);
-        let mut entries: Vec<(&(usize, usize), &f64)> = matches_counts[a].iter().collect();
-        entries.sort_by_key(|(k, _)| **k);
-        for (&(g, t), &m) in entries {
-            let (gc, tc) = (gt_id_count[g], tr_id_count[t]);
-            ass_a += m * (m / (gc + tc - m).max(1.0));
-            ass_re += m * (m / gc.max(1.0));
-            ass_pr += m * (m / tc.max(1.0));
-        }
         let tp = c.HOTA_TP[a].max(1.0);
-        c.AssA[a] = ass_a / tp;
-        c.AssRe[a] = ass_re / tp;
-        c.AssPr[a] = ass_pr / tp;
+        c.AssA[a] = ass_a[a] / tp;
+        c.AssRe[a] = ass_re[a] / tp;
+        c.AssPr[a] = ass_pr[a] / tp;
         c.LocA[a] = c.LocA[a].max(1e-10) / c.HOTA_TP[a].max(1e-10);
     }
     Ok(HotaMetrics::finalize(c))

@@ -15,11 +15,11 @@
 //! connected component of the "overlapped at least once" graph at a time, which keeps every
 //! matrix small.
 
+use super::FastMap as HashMap;
 use super::assignment::max_score_assignment;
 use super::preprocess::EvalSequence;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// Identity results with TrackEval's field names.
 #[allow(non_snake_case)]
@@ -93,7 +93,7 @@ pub(crate) fn max_weight_matching(
             parent[a] = b;
         }
     }
-    let mut comps: HashMap<usize, (Vec<usize>, Vec<usize>)> = HashMap::new();
+    let mut comps: HashMap<usize, (Vec<usize>, Vec<usize>)> = HashMap::default();
     for &((l, r), _) in &edges {
         let c = root(&mut parent, l);
         let e = comps.entry(c).or_default();
@@ -137,7 +137,7 @@ pub(crate) fn identity(seq: &EvalSequence, threshold: f64) -> Result<IdentityMet
         res.IDFP = seq.n_tr_dets as u64;
         return Ok(res);
     }
-    let mut potential: HashMap<(usize, usize), f64> = HashMap::new();
+    let mut potential: HashMap<(usize, usize), f64> = HashMap::default();
     for fr in &seq.frames {
         for (gi, &g) in fr.gt.iter().enumerate() {
             for (ti, &t) in fr.tr.iter().enumerate() {

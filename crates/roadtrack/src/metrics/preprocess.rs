@@ -167,7 +167,9 @@ pub(crate) fn preprocess(
             }
         }
         let mut remove = vec![false; nt];
-        if sel.preprocess && ng > 0 && nt > 0 {
+        // Without a distractor in the frame the assignment cannot remove anything.
+        let any_distractor = g_rows.iter().any(|g| sel.distractors.contains(&g.class));
+        if sel.preprocess && any_distractor && ng > 0 && nt > 0 {
             let scores: Vec<f64> = sim
                 .iter()
                 .map(|&s| if s < 0.5 - EPS { 0.0 } else { s })
