@@ -197,7 +197,7 @@ pub struct IntersectionConfig {
     pub left_turn_share: f64,
     /// Share of arrivals turning right (outer lane, with straight-on traffic). Default 0.2.
     pub right_turn_share: f64,
-    /// Pedestrian groups arriving per minute at each of the 8 sidewalk ends. Default 1.
+    /// Pedestrian groups arriving per minute at each of the 8 sidewalk ends. Default 2.
     pub pedestrian_groups_per_min_per_entry: f64,
     /// Signal timing.
     pub signal: IntersectionSignalConfig,
@@ -214,7 +214,7 @@ impl Default for IntersectionConfig {
             speed_limit_mps: 13.9,
             left_turn_share: 0.2,
             right_turn_share: 0.2,
-            pedestrian_groups_per_min_per_entry: 1.0,
+            pedestrian_groups_per_min_per_entry: 2.0,
             signal: IntersectionSignalConfig::default(),
         }
     }
@@ -270,7 +270,7 @@ pub struct CrossingConfig {
     pub inflow_veh_per_h_per_direction: f64,
     /// Speed limit, m/s. Default 11.1 (40 km/h).
     pub speed_limit_mps: f64,
-    /// Pedestrian groups arriving per minute at each of the 4 sidewalk ends. Default 5.
+    /// Pedestrian groups arriving per minute at each of the 4 sidewalk ends. Default 8.
     pub pedestrian_groups_per_min_per_entry: f64,
     /// Share of pedestrians who use the crosswalk (the rest walk along). Default 0.75.
     pub crossing_share: f64,
@@ -293,7 +293,7 @@ impl Default for CrossingConfig {
             crosswalk_width_m: 6.0,
             inflow_veh_per_h_per_direction: 500.0,
             speed_limit_mps: 11.1,
-            pedestrian_groups_per_min_per_entry: 5.0,
+            pedestrian_groups_per_min_per_entry: 8.0,
             crossing_share: 0.75,
             vehicle_green_s: 25.0,
             pedestrian_green_s: 18.0,

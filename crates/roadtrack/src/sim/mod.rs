@@ -484,3 +484,6 @@ pub fn simulate_in_memory(config: &SimConfig, seed: u64) -> Result<SimRun> {
     }
     Ok(run)
 }
+
+#[cfg(test)]
+mod tests;

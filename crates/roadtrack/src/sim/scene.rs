@@ -970,9 +970,9 @@ impl Scene {
             centre_m: [0.0, 0.0],
             extent_m: [-h, -lw - sw - 20.0, h, lw + sw + 20.0],
             camera: CameraPlacement {
-                position_m: [-13.0, -lw - sw - 3.0],
-                yaw_deg: 35.0,
-                tilt_deg: 24.0,
+                position_m: [-7.0, -lw - sw - 7.0],
+                yaw_deg: 62.0,
+                tilt_deg: 26.0,
             },
         }
     }
