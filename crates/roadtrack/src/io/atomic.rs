@@ -39,6 +39,13 @@ pub fn write_atomic(
         .into_inner()
         .map_err(|e| Error::io(path, e.into_error()))?;
     tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
+    // Temporary files are created private (0600); a finished output gets the usual mode.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| Error::io(path, e))?;
+    }
     tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     Ok(())
 }
@@ -58,6 +65,18 @@ mod tests {
         let p = dir.path().join("sub/out.txt");
         write_bytes_atomic(&p, b"hello\n")?;
         assert_eq!(std::fs::read(&p).map_err(|e| Error::io(&p, e))?, b"hello\n");
+        Ok(())
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn outputs_are_readable_by_others() -> Result<()> {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
+        let p = dir.path().join("o.txt");
+        write_bytes_atomic(&p, b"x")?;
+        let mode = std::fs::metadata(&p).map_err(|e| Error::io(&p, e))?.permissions().mode();
+        assert_eq!(mode & 0o777, 0o644);
         Ok(())
     }
 
