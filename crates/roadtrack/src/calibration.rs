@@ -22,11 +22,19 @@
 //! image_from_ground = [[h11, h12, h13], [h21, h22, h23], [h31, h32, h33]]
 //! ```
 //!
+//! ```toml
+//! # 3. Four or more surveyed points: image px ↔ ground m; H is estimated by least squares.
+//! [[points]]
+//! image = [102.5, 388.0]
+//! ground = [0.0, 0.0]
+//! # … at least four, no three of them on one line
+//! ```
+//!
 //! In the nadir form the image's `+y` axis (down) points to the ground direction
 //! `rotation_deg − 90°`, so with `rotation_deg = 0` image right is ground `+x` and image
 //! down is ground `−y` (north up). The 3 × 3 algebra (product, inverse) is written out here;
-//! estimating `H` from four or more point pairs (direct linear transform) can be added as
-//! another constructor that returns the same type.
+//! the point-pair form uses the normalised direct linear transform (Hartley & Zisserman,
+//! alg. 4.2) solved by SVD (nalgebra) and reports the reprojection error ([`FitReport`]).
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
@@ -42,6 +50,30 @@ pub struct Calibration {
     image_from_ground: Mat3,
     ground_from_image: Mat3,
     nadir: Option<NadirScale>,
+    fit: Option<FitReport>,
+}
+
+/// One surveyed correspondence: a pixel and the ground point it shows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointPair {
+    /// Image position `[u, v]`, px.
+    pub image: [f64; 2],
+    /// Ground position `[x, y]`, m.
+    pub ground: [f64; 2],
+}
+
+/// How well an estimated homography reproduces its point pairs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitReport {
+    /// Number of point pairs.
+    pub points: usize,
+    /// Root-mean-square reprojection error in the image, px.
+    pub rms_px: f64,
+    /// Largest reprojection error, px.
+    pub max_px: f64,
+    /// Reprojection error of each pair, px, in input order.
+    pub errors_px: Vec<f64>,
 }
 
 /// The parameters of a nadir calibration at a fixed scale.
@@ -67,6 +99,8 @@ struct CalibrationFile {
     rotation_deg: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     image_from_ground: Option<Mat3>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    points: Vec<PointPair>,
 }
 
 /// `a · b`.
@@ -153,6 +187,7 @@ impl Calibration {
                 origin_m,
                 rotation_deg,
             }),
+            fit: None,
         })
     }
 
@@ -176,6 +211,7 @@ impl Calibration {
             image_from_ground,
             ground_from_image,
             nadir: None,
+            fit: None,
         })
     }
 
@@ -227,6 +263,7 @@ impl Calibration {
                 origin_m: Some(n.origin_m),
                 rotation_deg: Some(n.rotation_deg),
                 image_from_ground: None,
+                points: Vec::new(),
             },
             None => CalibrationFile {
                 image_from_ground: Some(self.image_from_ground),
@@ -246,6 +283,18 @@ impl Calibration {
             path: path.to_owned(),
             message: e.to_string(),
         })?;
+        if !file.points.is_empty() {
+            if file.metres_per_pixel.is_some() || file.image_from_ground.is_some() {
+                return Err(Error::format(
+                    path,
+                    "give one form: points, metres_per_pixel or image_from_ground",
+                ));
+            }
+            return Self::from_point_pairs(&file.points).map_err(|e| match e {
+                Error::Invalid(m) => Error::format(path, m),
+                other => other,
+            });
+        }
         match (file.metres_per_pixel, file.image_from_ground) {
             (Some(k), None) => Self::from_nadir(
                 k,
@@ -267,9 +316,134 @@ impl Calibration {
             )),
             (None, None) => Err(Error::format(
                 path,
-                "missing metres_per_pixel or image_from_ground",
+                "missing metres_per_pixel, image_from_ground or [[points]]",
             )),
         }
+    }
+
+    /// Estimates the homography from four or more point pairs by the normalised direct linear
+    /// transform (least squares on the algebraic error, Hartley & Zisserman alg. 4.2), and
+    /// records the reprojection error in [`Calibration::fit`].
+    ///
+    /// # Errors
+    /// Fewer than four pairs, non-finite values, or a degenerate configuration (three or
+    /// more points on one line in either plane, so that `H` is not determined).
+    pub fn from_point_pairs(pairs: &[PointPair]) -> Result<Self> {
+        if pairs.len() < 4 {
+            return Err(Error::Invalid(format!(
+                "a homography needs at least 4 point pairs, found {}",
+                pairs.len()
+            )));
+        }
+        if pairs
+            .iter()
+            .any(|p| p.image.iter().chain(&p.ground).any(|v| !v.is_finite()))
+        {
+            return Err(Error::Invalid(
+                "a point pair has a non-finite coordinate".into(),
+            ));
+        }
+        // Similarity normalisation: centroid to the origin, mean distance √2.
+        fn normaliser(pts: &[[f64; 2]]) -> Mat3 {
+            let n = pts.len() as f64;
+            let (cx, cy) = pts
+                .iter()
+                .fold((0.0, 0.0), |a, p| (a.0 + p[0] / n, a.1 + p[1] / n));
+            let d = pts
+                .iter()
+                .map(|p| (p[0] - cx).hypot(p[1] - cy))
+                .sum::<f64>()
+                / n;
+            let s = if d > 0.0 { 2f64.sqrt() / d } else { 1.0 };
+            [[s, 0.0, -s * cx], [0.0, s, -s * cy], [0.0, 0.0, 1.0]]
+        }
+        let apply = |m: &Mat3, p: [f64; 2]| {
+            let w = m[2][0] * p[0] + m[2][1] * p[1] + m[2][2];
+            [
+                (m[0][0] * p[0] + m[0][1] * p[1] + m[0][2]) / w,
+                (m[1][0] * p[0] + m[1][1] * p[1] + m[1][2]) / w,
+            ]
+        };
+        let img: Vec<[f64; 2]> = pairs.iter().map(|p| p.image).collect();
+        let gnd: Vec<[f64; 2]> = pairs.iter().map(|p| p.ground).collect();
+        let (ti, tg) = (normaliser(&img), normaliser(&gnd));
+        let n = pairs.len();
+        let mut a = nalgebra::DMatrix::<f64>::zeros(2 * n, 9);
+        for (k, (i, g)) in img.iter().zip(&gnd).enumerate() {
+            let [u, v] = apply(&ti, *i);
+            let [x, y] = apply(&tg, *g);
+            let r0 = [x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u];
+            let r1 = [0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y, -v];
+            for c in 0..9 {
+                a[(2 * k, c)] = r0[c];
+                a[(2 * k + 1, c)] = r1[c];
+            }
+        }
+        // The solution is the right singular vector of the smallest singular value; with
+        // exactly 4 pairs A is 8 × 9, so pad to 9 rows for a full V.
+        let rows = a.nrows();
+        let a = if rows < 9 { a.insert_row(rows, 0.0) } else { a };
+        let svd = a.svd(false, true);
+        let v_t = svd
+            .v_t
+            .ok_or_else(|| Error::Invalid("SVD of the point pairs failed".into()))?;
+        let (mut min_k, mut min_s) = (0, f64::INFINITY);
+        let mut sorted: Vec<f64> = svd.singular_values.iter().copied().collect();
+        for (k, &s) in svd.singular_values.iter().enumerate() {
+            if s < min_s {
+                (min_k, min_s) = (k, s);
+            }
+        }
+        sorted.sort_by(f64::total_cmp);
+        // Degenerate when the null space has more than one dimension.
+        if sorted.len() > 1 && sorted[1] <= 1e-9 * sorted[sorted.len() - 1] {
+            return Err(Error::Invalid(
+                "the point pairs do not determine a homography (are three or more on one line?)"
+                    .into(),
+            ));
+        }
+        let h = v_t.row(min_k);
+        let hn: Mat3 = [[h[0], h[1], h[2]], [h[3], h[4], h[5]], [h[6], h[7], h[8]]];
+        let ti_inv =
+            mat3_inverse(&ti).ok_or_else(|| Error::Invalid("degenerate image points".into()))?;
+        let mut hm = mat3_mul(&mat3_mul(&ti_inv, &hn), &tg);
+        // Scale so that w > 0 in front of the camera (at the ground points) and h33 = 1 where possible.
+        let w0 = hm[2][0] * gnd[0][0] + hm[2][1] * gnd[0][1] + hm[2][2];
+        let scale = if hm[2][2].abs() > 1e-12 {
+            1.0 / hm[2][2]
+        } else {
+            1.0
+        };
+        let scale = if w0 * scale < 0.0 { -scale } else { scale };
+        for row in &mut hm {
+            for v in row.iter_mut() {
+                *v *= scale;
+            }
+        }
+        let mut cal = Self::from_homography(hm)?;
+        let errors_px: Vec<f64> = pairs
+            .iter()
+            .map(|p| {
+                cal.image_from_ground(p.ground[0], p.ground[1])
+                    .map_or(f64::INFINITY, |q| {
+                        (q.x - p.image[0]).hypot(q.y - p.image[1])
+                    })
+            })
+            .collect();
+        let rms_px = (errors_px.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt();
+        let max_px = errors_px.iter().copied().fold(0.0, f64::max);
+        cal.fit = Some(FitReport {
+            points: n,
+            rms_px,
+            max_px,
+            errors_px,
+        });
+        Ok(cal)
+    }
+
+    /// The reprojection report when the calibration was estimated from point pairs.
+    pub fn fit(&self) -> Option<&FitReport> {
+        self.fit.as_ref()
     }
 
     /// Reads a calibration file.
@@ -369,6 +543,81 @@ mod tests {
             .ok_or(Error::Invalid("horizon".into()))?;
         assert!(x > 0.0 && y.abs() < 1e-9, "{x} {y}");
         assert!(cal.image_from_ground(-10.0, 0.0).is_none());
+        Ok(())
+    }
+
+    /// An oblique camera's homography (8 m high, tilted) for the estimation tests.
+    fn oblique() -> Mat3 {
+        [
+            [620.0, -180.0, 2400.0],
+            [40.0, 95.0, 5200.0],
+            [0.02, -0.35, 12.0],
+        ]
+    }
+
+    #[test]
+    fn point_pairs_recover_a_known_homography_from_noisy_points() -> Result<()> {
+        use rand::RngExt;
+        let truth = Calibration::from_homography(oblique())?;
+        let mut rng = crate::rng::rng(3, crate::rng::Stream::Synthetic);
+        let mut pairs = Vec::new();
+        for gx in [-10.0, -5.0, 0.0, 5.0, 10.0] {
+            for gy in [5.0, 10.0, 20.0, 30.0] {
+                let p = truth.image_from_ground(gx, gy).expect("in front");
+                // ±0.5 px uniform image noise.
+                let (nx, ny) = (rng.random_range(-0.5..=0.5), rng.random_range(-0.5..=0.5));
+                pairs.push(PointPair {
+                    image: [p.x + nx, p.y + ny],
+                    ground: [gx, gy],
+                });
+            }
+        }
+        let est = Calibration::from_point_pairs(&pairs)?;
+        let fit = est.fit().expect("fit report");
+        assert_eq!(fit.points, 20);
+        assert!(fit.rms_px < 0.6 && fit.max_px < 1.5, "{fit:?}");
+        // Ground positions agree within 5 cm over the surveyed area.
+        for gx in [-8.0, 0.0, 8.0] {
+            for gy in [6.0, 15.0, 28.0] {
+                let p = truth.image_from_ground(gx, gy).expect("in front");
+                let (x, y) = est.ground_from_image(p).expect("ground");
+                assert!((x - gx).hypot(y - gy) < 0.05, "({gx},{gy}) → ({x},{y})");
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn exact_pairs_give_zero_reprojection_and_bad_sets_are_rejected() -> Result<()> {
+        let truth = Calibration::from_homography(oblique())?;
+        let pairs: Vec<PointPair> = [[0.0, 5.0], [4.0, 5.0], [4.0, 20.0], [0.0, 20.0]]
+            .iter()
+            .map(|g| {
+                let p = truth.image_from_ground(g[0], g[1]).expect("in front");
+                PointPair {
+                    image: [p.x, p.y],
+                    ground: *g,
+                }
+            })
+            .collect();
+        let est = Calibration::from_point_pairs(&pairs)?;
+        assert!(est.fit().expect("fit").max_px < 1e-6);
+        assert!(Calibration::from_point_pairs(&pairs[..3]).is_err());
+        let collinear: Vec<PointPair> = (0..5)
+            .map(|k| PointPair {
+                image: [k as f64, 2.0 * k as f64],
+                ground: [k as f64, 0.0],
+            })
+            .collect();
+        let e = Calibration::from_point_pairs(&collinear)
+            .expect_err("collinear")
+            .to_string();
+        assert!(e.contains("line"), "{e}");
+        let toml = "[[points]]\nimage = [1.0, 2.0]\nground = [0.0, 0.0]\n";
+        let e = Calibration::from_toml_str(toml, Path::new("c.toml"))
+            .expect_err("one pair")
+            .to_string();
+        assert!(e.contains("c.toml") && e.contains("at least 4"), "{e}");
         Ok(())
     }
 }
