@@ -28,6 +28,7 @@ enum Command {
     Check(cmd::check::Args),
     Plot(cmd::plot::Args),
     Render(cmd::render::Args),
+    Track(cmd::track::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +40,7 @@ fn main() -> ExitCode {
         Command::Check(args) => cmd::check::run(args, &ui),
         Command::Plot(args) => cmd::plot::run(args, &ui),
         Command::Render(args) => cmd::render::run(args, &ui),
+        Command::Track(args) => cmd::track::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -246,6 +246,39 @@ pub fn bootstrap_positions(total: Option<u32>, bootstrap: u32) -> Vec<u32> {
     }
 }
 
+/// Keeps `bootstrap` frames spread evenly over `frames` (whose count is `total` when known;
+/// see [`bootstrap_positions`]) and stops reading once it has them.
+pub fn sample_frames(
+    frames: impl Iterator<Item = Result<crate::frame::Frame>>,
+    total: Option<u32>,
+    bootstrap: u32,
+) -> Result<Vec<RgbImage>> {
+    let wanted = bootstrap_positions(total, bootstrap);
+    let mut samples = Vec::with_capacity(wanted.len());
+    let mut next = wanted.iter().peekable();
+    for (pos, frame) in frames.enumerate() {
+        let Some(&&want) = next.peek() else { break };
+        if pos as u32 == want {
+            samples.push(frame?.image);
+            next.next();
+        }
+    }
+    Ok(samples)
+}
+
+/// A background model bootstrapped from a frame source: a first, read-only pass over
+/// `input` with `options` collects the sample frames.
+pub fn bootstrap_from_source(
+    input: &std::path::Path,
+    options: &crate::io::SourceOptions,
+    config: BackgroundConfig,
+) -> Result<BackgroundModel> {
+    let first = crate::io::source::open(input, options)?;
+    let total = first.info.selected_frames;
+    let samples = sample_frames(first, total, config.bootstrap_frames)?;
+    BackgroundModel::from_samples(&samples, config)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

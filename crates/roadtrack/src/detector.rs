@@ -1,7 +1,7 @@
 //! Moving-object extraction for fixed cameras (`roadtrack detect`): background model →
 //! foreground mask → clean-up → regions → detections with centre, box, area, mean colour.
 
-use crate::background::{BackgroundConfig, BackgroundModel, bootstrap_positions};
+use crate::background::{BackgroundConfig, BackgroundModel, sample_frames};
 use crate::detection::{Detection, Region, RegionConfig, clean_mask, extract_regions};
 use crate::error::Result;
 use crate::frame::Frame;
@@ -59,17 +59,21 @@ impl Detector {
         total: Option<u32>,
     ) -> Result<Self> {
         config.validate()?;
-        let wanted = bootstrap_positions(total, config.background.bootstrap_frames);
-        let mut samples = Vec::with_capacity(wanted.len());
-        let mut next = wanted.iter().peekable();
-        for (pos, frame) in frames.enumerate() {
-            let Some(&&want) = next.peek() else { break };
-            if pos as u32 == want {
-                samples.push(frame?.image);
-                next.next();
-            }
-        }
+        let samples = sample_frames(frames, total, config.background.bootstrap_frames)?;
         Self::new(config, &samples)
+    }
+
+    /// A detector bootstrapped by a first, read-only pass over `input` (see
+    /// [`Detector::bootstrap`]).
+    pub fn bootstrap_source(
+        config: DetectorConfig,
+        input: &std::path::Path,
+        options: &crate::io::SourceOptions,
+    ) -> Result<Self> {
+        config.validate()?;
+        let model =
+            crate::background::bootstrap_from_source(input, options, config.background.clone())?;
+        Ok(Self { config, model })
     }
 
     /// The background model.

@@ -29,6 +29,7 @@ pub mod render;
 pub mod rng;
 pub mod sim;
 pub mod track;
+pub mod tracking;
 
 pub use calibration::Calibration;
 pub use class::ObjectClass;

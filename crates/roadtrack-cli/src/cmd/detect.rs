@@ -54,22 +54,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     }
     config.validate()?;
     let options = args.frames.options();
-    // First pass: sample frames for the initial background.
-    let first = source::open(&args.input, &options)?;
-    let total = first.info.selected_frames;
+    let info = source::open(&args.input, &options)?.info;
+    let total = info.selected_frames;
     ui.detail(format!(
         "{}: {}×{} px, {} fps, {} frames selected",
         args.input.display(),
-        first.info.width,
-        first.info.height,
-        first.info.fps,
+        info.width,
+        info.height,
+        info.fps,
         total.map_or("unknown".into(), |t| t.to_string())
     ));
-    let bar = ui.progress(
-        Some(u64::from(config.background.bootstrap_frames)),
-        "background",
-    );
-    let mut detector = Detector::bootstrap(config, first.inspect(|_| bar.inc(0)), total)?;
+    let bar = ui.progress(None, "background");
+    let mut detector = Detector::bootstrap_source(config, &args.input, &options)?;
     bar.finish_and_clear();
 
     let frames = source::open(&args.input, &options)?;

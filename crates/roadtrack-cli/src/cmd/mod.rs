@@ -5,3 +5,4 @@ pub mod check;
 pub mod detect;
 pub mod plot;
 pub mod render;
+pub mod track;
