@@ -23,6 +23,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    Analyze(cmd::analyze::Args),
     Detect(cmd::detect::Args),
     Bench(cmd::bench::Args),
     Check(cmd::check::Args),
@@ -35,6 +36,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let ui = common::Ui::new(cli.quiet, cli.verbose);
     let result = match cli.command {
+        Command::Analyze(args) => cmd::analyze::run(args, &ui),
         Command::Detect(args) => cmd::detect::run(args, &ui),
         Command::Bench(args) => cmd::bench::run(args, &ui),
         Command::Check(args) => cmd::check::run(args, &ui),
