@@ -13,6 +13,9 @@ const ARMS: [(&str, [f64; 4]); 4] = [
     ("W", [-95.0, -16.0, -12.0, 12.0]),
 ];
 
+/// (time s, x m, y m) of one object.
+type Samples = Vec<(f64, f64, f64)>;
+
 fn arm_of(x: f64, y: f64) -> Option<&'static str> {
     ARMS.iter()
         .find(|(_, r)| x >= r[0] && x <= r[1] && y >= r[2] && y <= r[3])
@@ -44,7 +47,7 @@ fn counts_and_turning_movements_on_a_simulated_intersection_equal_the_truth() {
         col("y_m"),
         col("time_s"),
     );
-    let mut tracks: BTreeMap<u64, (String, Vec<(f64, f64, f64)>)> = BTreeMap::new();
+    let mut tracks: BTreeMap<u64, (String, Samples)> = BTreeMap::new();
     for l in lines {
         let f: Vec<&str> = l.split(',').collect();
         let e = tracks
