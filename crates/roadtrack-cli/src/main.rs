@@ -24,6 +24,7 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     Analyze(cmd::analyze::Args),
+    Demo(cmd::demo::Args),
     Detect(cmd::detect::Args),
     Bench(cmd::bench::Args),
     Check(cmd::check::Args),
@@ -37,6 +38,7 @@ fn main() -> ExitCode {
     let ui = common::Ui::new(cli.quiet, cli.verbose);
     let result = match cli.command {
         Command::Analyze(args) => cmd::analyze::run(args, &ui),
+        Command::Demo(args) => cmd::demo::run(args, &ui),
         Command::Detect(args) => cmd::detect::run(args, &ui),
         Command::Bench(args) => cmd::bench::run(args, &ui),
         Command::Check(args) => cmd::check::run(args, &ui),

@@ -12,6 +12,7 @@ pub mod bench;
 pub mod calibration;
 pub mod class;
 pub mod config;
+pub mod demo;
 pub mod detection;
 pub mod detector;
 pub mod error;

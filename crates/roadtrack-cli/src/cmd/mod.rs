@@ -3,6 +3,7 @@
 pub mod analyze;
 pub mod bench;
 pub mod check;
+pub mod demo;
 pub mod detect;
 pub mod plot;
 pub mod render;
