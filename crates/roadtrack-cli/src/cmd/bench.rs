@@ -22,36 +22,133 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Stages to run (default all): decode, detect, simulate, relaxation, mrf, filters.
+    #[arg(long, value_delimiter = ',')]
+    pub stages: Vec<String>,
+    /// Largest vehicle count of the relaxation scale stage (50, 1 000, 10 000, 100 000).
+    #[arg(long, default_value_t = 100_000)]
+    pub max_vehicles: usize,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let machine = bench::machine();
     let mut results: Vec<StageResult> = Vec::new();
+    let want = |s: &str| args.stages.is_empty() || args.stages.iter().any(|x| x == s);
     let bar = ui.progress(None, "bench");
-    if args.video.is_file() && roadtrack::io::video::ffmpeg_available() {
-        bar.set_message("decode");
-        results.push(bench::decode(&args.video, &SourceOptions::default())?);
-        bar.set_message("detect");
-        let (label, frames) = bench::load_frames(&args.video, 400)?;
-        results.push(bench::detect_frames(
-            &label,
-            &frames,
-            &DetectorConfig::default(),
-        )?);
-    } else {
+    let have_video = args.video.is_file() && roadtrack::io::video::ffmpeg_available();
+    if !have_video {
         ui.info(format!(
             "note: {} not found or ffmpeg missing; skipping the real-video stages",
             args.video.display()
         ));
     }
-    bar.set_message("generate");
-    let frames = bench::moving_boxes(640, 480, args.frames, 12);
-    bar.set_message("detect");
-    results.push(bench::detect_frames(
-        "generated 640×480, 12 boxes",
-        &frames,
-        &DetectorConfig::default(),
-    )?);
+    if have_video && want("decode") {
+        bar.set_message("decode");
+        results.push(bench::decode(&args.video, &SourceOptions::default())?);
+    }
+    let generated = bench::moving_boxes(640, 480, args.frames, 12);
+    if want("detect") {
+        bar.set_message("detect");
+        if have_video {
+            let (label, frames) = bench::load_frames(&args.video, 400)?;
+            results.push(bench::detect_frames(
+                &label,
+                &frames,
+                &DetectorConfig::default(),
+            )?);
+        }
+        results.push(bench::detect_frames(
+            "generated 640×480, 12 boxes",
+            &generated,
+            &DetectorConfig::default(),
+        )?);
+    }
+    if want("simulate") {
+        use roadtrack::sim::{SceneKind, SimConfig, ViewKind};
+        for (scene, view, name) in [
+            (SceneKind::Road, ViewKind::Aerial, "road aerial"),
+            (
+                SceneKind::Intersection,
+                ViewKind::Oblique,
+                "intersection oblique",
+            ),
+        ] {
+            bar.set_message(format!("simulate {name}"));
+            let cfg = SimConfig {
+                scene,
+                view,
+                ..Default::default()
+            };
+            let b = roadtrack::sim::benchmark(&cfg, 0, args.frames)?;
+            let label = format!("{name} {}×{}", b.size.0, b.size.1);
+            results.push(StageResult::new(
+                "sim-render",
+                &label,
+                u64::from(b.frames),
+                "frames",
+                b.setup_s + b.render_s,
+            ));
+            results.push(StageResult::new(
+                "sim-encode",
+                &label,
+                u64::from(b.frames),
+                "frames",
+                b.encode_s,
+            ));
+        }
+    }
+    if want("relaxation") {
+        for n in [50usize, 1_000, 10_000, 100_000]
+            .into_iter()
+            .filter(|&n| n <= args.max_vehicles)
+        {
+            bar.set_message(format!("relaxation {n}"));
+            let r = roadtrack::relaxation::bench_scale(n, &Default::default(), 1)?;
+            results.push(StageResult::new(
+                "relaxation",
+                &format!("{n} vehicles, 0.3 m/px network"),
+                n as u64,
+                "vehicles",
+                r.build_s + r.solve_s,
+            ));
+        }
+    }
+    if want("mrf") {
+        bar.set_message("mrf");
+        let cfg = roadtrack::mrf::MrfConfig::default();
+        let b = roadtrack::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
+        results.push(StageResult::new(
+            "mrf",
+            "generated 640×480, 1 thread",
+            u64::from(b.frames),
+            "frames",
+            b.seconds,
+        ));
+        if have_video {
+            let (_, frames) = bench::load_frames(&args.video, 200)?;
+            let b = roadtrack::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
+            results.push(StageResult::new(
+                "mrf",
+                "vtest.avi 768×576, 1 thread",
+                u64::from(b.frames),
+                "frames",
+                b.seconds,
+            ));
+        }
+    }
+    if want("filters") {
+        bar.set_message("filters");
+        let reports = roadtrack::filter::bench::bench_filters(&Default::default(), &mut |_, _| {})?;
+        for r in reports {
+            results.push(StageResult::new(
+                "filter",
+                &format!("{} ({} particles)", r.name, r.particles),
+                r.frames,
+                "frames",
+                r.total_ms * r.frames as f64 / 1000.0,
+            ));
+        }
+    }
     bar.finish_and_clear();
 
     if args.json {
@@ -67,12 +164,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             build_profile()
         );
         println!(
-            "{:<10} {:<34} {:>8} {:>9} {:>12}",
+            "{:<11} {:<44} {:>8} {:>9} {:>12}",
             "stage", "input", "items", "seconds", "per second"
         );
         for r in &results {
             println!(
-                "{:<10} {:<34} {:>8} {:>9.3} {:>8.1} {}",
+                "{:<11} {:<44} {:>8} {:>9.3} {:>8.1} {}",
                 r.stage, r.input, r.items, r.seconds, r.per_second, r.unit
             );
         }
