@@ -9,6 +9,7 @@
 pub mod background;
 pub mod bench;
 pub mod class;
+pub mod cnn;
 pub mod config;
 pub mod detection;
 pub mod detector;
