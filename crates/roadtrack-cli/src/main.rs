@@ -25,6 +25,7 @@ struct Cli {
 enum Command {
     Detect(cmd::detect::Args),
     Bench(cmd::bench::Args),
+    Train(cmd::train::Args),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +34,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Detect(args) => cmd::detect::run(args, &ui),
         Command::Bench(args) => cmd::bench::run(args, &ui),
+        Command::Train(args) => cmd::train::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
