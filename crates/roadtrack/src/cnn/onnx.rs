@@ -676,6 +676,27 @@ impl OnnxClassifier {
     /// When the model's head is not `GlobalAveragePool → Flatten → Gemm [→ activation]`.
     pub fn score_map(&self, image: &RgbImage, stride_px: u32) -> Result<ScoreMap> {
         let head = self.dense_head()?;
+        let t = head.net_stride;
+        let k = ((f64::from(stride_px) / (t as f64 * self.window_scale)).round() as usize).max(1);
+        // Bands of about DENSE_BAND_PX input rows, so the window-height overlap between
+        // bands stays a small fraction of the work.
+        let band_rows = DENSE_BAND_PX.div_ceil(t * k).max(4);
+        self.score_map_in_bands(image, stride_px, band_rows)
+    }
+
+    /// [`OnnxClassifier::score_map`] computed in horizontal bands of `band_rows` grid rows,
+    /// one network pass per band, bands in parallel.
+    ///
+    /// Choice: the band height depends on the stride only (not on the thread count), so the
+    /// tensors, and hence the values, do not depend on the thread count; tract runs one pass on one core, so bands
+    /// are what uses the second core.
+    fn score_map_in_bands(
+        &self,
+        image: &RgbImage,
+        stride_px: u32,
+        band_rows: usize,
+    ) -> Result<ScoreMap> {
+        let head = self.dense_head()?;
         let s = self.window_scale;
         let t = head.net_stride;
         let k = ((f64::from(stride_px) / (t as f64 * s)).round() as usize).max(1);
@@ -684,48 +705,70 @@ impl OnnxClassifier {
         let nx = (f64::from(iw) / step_px).ceil() as usize + 1;
         let ny = (f64::from(ih) / step_px).ceil() as usize + 1;
         let dw = (nx - 1) * t * k + self.input_width;
-        let dh = (ny - 1) * t * k + self.input_height;
-        let plan = self.dense_plan(&head, dh, dw, k)?;
         // Dense pixel q samples image position (q − w/2 + 0.5)·s − 0.5 (see cut_window).
         let x0 = (0.5 - self.input_width as f64 / 2.0) * s - 0.5;
         let y0 = (0.5 - self.input_height as f64 / 2.0) * s - 0.5;
-        let mut input = vec![0.0f32; 3 * dw * dh];
-        sample_grid(image, x0, y0, s, dw, dh, &self.prep, &mut input);
-        let t_in = Tensor::from_shape(&[1, 3, dh, dw], &input).map_err(|e| self.run_error(e))?;
-        let out = plan
-            .run(tvec![t_in.into()])
-            .map_err(|e| self.run_error(e))?;
-        let first = out.first().ok_or_else(|| self.run_error("no output"))?;
-        let view = first
-            .to_plain_array_view::<f32>()
-            .map_err(|e| self.run_error(e))?;
-        let shape = view.shape().to_vec();
-        let [1, c, oh, ow] = shape.as_slice() else {
-            return Err(self.run_error(format!("dense output shape {shape:?}")));
-        };
-        let (c, oh, ow) = (*c, *oh, *ow);
-        let (gw, gh) = (nx.min(ow), ny.min(oh));
         let kind = head.activation.unwrap_or(self.output);
-        let data: Vec<f32> = view.iter().copied().collect();
-        let mut values = Vec::with_capacity(gw * gh);
-        let mut logits = vec![0.0f32; c];
-        for i in 0..gh {
-            for j in 0..gw {
-                for (ch, l) in logits.iter_mut().enumerate() {
-                    *l = data[(ch * oh + i) * ow + j];
+        let band_rows = band_rows.max(1);
+        let bands: Vec<(usize, usize)> = (0..ny)
+            .step_by(band_rows)
+            .map(|r0| (r0, (r0 + band_rows).min(ny)))
+            .collect();
+        let band_values: Vec<Vec<f32>> = bands
+            .par_iter()
+            .map(|&(r0, r1)| -> Result<Vec<f32>> {
+                let rows = r1 - r0;
+                let dh = (rows - 1) * t * k + self.input_height;
+                let plan = self.dense_plan(&head, dh, dw, k)?;
+                let mut input = vec![0.0f32; 3 * dw * dh];
+                let band_y0 = y0 + (r0 * t * k) as f64 * s;
+                sample_grid(image, x0, band_y0, s, dw, dh, &self.prep, &mut input);
+                let t_in =
+                    Tensor::from_shape(&[1, 3, dh, dw], &input).map_err(|e| self.run_error(e))?;
+                let out = plan
+                    .run(tvec![t_in.into()])
+                    .map_err(|e| self.run_error(e))?;
+                let first = out.first().ok_or_else(|| self.run_error("no output"))?;
+                let view = first
+                    .to_plain_array_view::<f32>()
+                    .map_err(|e| self.run_error(e))?;
+                let shape = view.shape().to_vec();
+                let [1, c, oh, ow] = shape.as_slice() else {
+                    return Err(self.run_error(format!("dense output shape {shape:?}")));
+                };
+                let (c, oh, ow) = (*c, *oh, *ow);
+                if oh < rows || ow < nx {
+                    return Err(self.run_error(format!(
+                        "dense output {oh}×{ow} is smaller than the grid {rows}×{nx}"
+                    )));
                 }
-                values.push(class_probability(&logits, self.target_class, kind) as f32);
-            }
-        }
+                let data: Vec<f32> = view.iter().copied().collect();
+                let mut values = Vec::with_capacity(rows * nx);
+                let mut logits = vec![0.0f32; c];
+                for i in 0..rows {
+                    for j in 0..nx {
+                        for (ch, l) in logits.iter_mut().enumerate() {
+                            *l = data[(ch * oh + i) * ow + j];
+                        }
+                        values.push(class_probability(&logits, self.target_class, kind) as f32);
+                    }
+                }
+                Ok(values)
+            })
+            .collect::<Result<_>>()?;
         Ok(ScoreMap {
             origin_px: Point::new(0.0, 0.0),
             stride_px: step_px,
-            width: gw,
-            height: gh,
-            values,
+            width: nx,
+            height: ny,
+            values: band_values.concat(),
         })
     }
 }
+
+/// Dense-input rows per band, about (see `score_map_in_bands`). Choice: 256, two bands for
+/// a 480-row frame, so both cores of the reference machine work on one frame.
+const DENSE_BAND_PX: usize = 256;
 
 fn ints_attr(name: &str, v: &[usize]) -> pb::AttributeProto {
     pb::AttributeProto {
@@ -838,6 +881,21 @@ mod tests {
                 .iter()
                 .fold((1.0f64, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
             assert!(hi - lo > 1e-3, "scores are flat: {lo}..{hi}");
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn dense_bands_give_the_same_map_as_one_pass() -> Result<()> {
+        let model = tiny();
+        let img = textured(45, 70);
+        let one = model.score_map_in_bands(&img, 4, 1000)?;
+        for rows in [1, 3, 7] {
+            let banded = model.score_map_in_bands(&img, 4, rows)?;
+            assert_eq!((banded.width, banded.height), (one.width, one.height));
+            for (a, b) in banded.values.iter().zip(&one.values) {
+                assert!((a - b).abs() < 1e-6, "{rows} rows: {a} vs {b}");
+            }
         }
         Ok(())
     }
