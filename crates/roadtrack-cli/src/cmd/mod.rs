@@ -8,3 +8,4 @@ pub mod detect;
 pub mod plot;
 pub mod render;
 pub mod track;
+pub mod train;

@@ -1,0 +1,175 @@
+//! `roadtrack train`: train the small CNN classifier used as a likelihood (METHODS.md §3).
+
+use crate::common::Ui;
+use anyhow::{Context, Result, bail};
+use roadtrack::cnn::export::write_onnx;
+use roadtrack::cnn::train::{
+    Preset, TrainConfig, patches_from_folders, patches_from_sequence, train, training_preprocessing,
+};
+use std::path::PathBuf;
+
+/// Train a person-vs-background or vehicle-vs-background CNN and write it as ONNX.
+///
+/// Data come from two folders of patches (`--positives`, `--negatives`) or from a
+/// MOTChallenge sequence's ground truth (`--sequence`: positives around the boxes, negatives
+/// sampled away from them). 80 % trains, 20 % tests; the paper's epochs, batch size and
+/// learning rate are the defaults of each `--preset`. The written model loads in the tracker
+/// like any ONNX classifier (its preprocessing and window scale are in its metadata).
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Example:\n  roadtrack train --positives patches/person --negatives patches/background -o person.onnx\n  roadtrack train --sequence MOT17-09 --preset person --seed 1 -o person.onnx"
+)]
+pub struct Args {
+    /// Folder of target-class patch images (.png/.jpg, any size; stretched to the input).
+    #[arg(
+        long,
+        value_name = "DIR",
+        requires = "negatives",
+        conflicts_with = "sequence"
+    )]
+    pub positives: Option<PathBuf>,
+    /// Folder of background patch images.
+    #[arg(long, value_name = "DIR", requires = "positives")]
+    pub negatives: Option<PathBuf>,
+    /// MOTChallenge sequence folder with gt/gt.txt to cut patches from.
+    #[arg(long, value_name = "SEQ", required_unless_present = "positives")]
+    pub sequence: Option<PathBuf>,
+    /// Output ONNX model.
+    #[arg(short, long, default_value = "model.onnx")]
+    pub output: PathBuf,
+    /// Target class and the paper's hyper-parameters for it.
+    #[arg(long, value_enum, default_value_t = PresetArg::Person)]
+    pub preset: PresetArg,
+    /// Epochs (preset: person 30, vehicle 20).
+    #[arg(long)]
+    pub epochs: Option<u32>,
+    /// Batch size (preset: person 64, vehicle 32).
+    #[arg(long)]
+    pub batch_size: Option<usize>,
+    /// Adam learning rate (preset: person 1e-3, vehicle 1e-4).
+    #[arg(long)]
+    pub learning_rate: Option<f64>,
+    /// Fraction of patches used for training; the rest tests (default 0.8).
+    #[arg(long)]
+    pub train_fraction: Option<f64>,
+    /// Network input HEIGHTxWIDTH in px (preset: person 64x32, vehicle 32x48).
+    #[arg(long, value_name = "HxW")]
+    pub input_size: Option<String>,
+    /// Most positives drawn from a sequence (preset: person 900, vehicle 5000).
+    #[arg(long)]
+    pub max_positives: Option<usize>,
+    /// Random seed (weights, shuffling, split, negatives).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Also write the training report (per-epoch loss and test accuracy) as JSON.
+    #[arg(long, value_name = "F.json")]
+    pub report: Option<PathBuf>,
+}
+
+/// `--preset` values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum PresetArg {
+    /// Person vs background.
+    Person,
+    /// Vehicle vs background.
+    Vehicle,
+}
+
+fn parse_size(s: &str) -> Result<(usize, usize)> {
+    let (h, w) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--input-size {s}: expected HEIGHTxWIDTH, e.g. 64x32"))?;
+    Ok((h.trim().parse()?, w.trim().parse()?))
+}
+
+pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    let preset = match args.preset {
+        PresetArg::Person => Preset::Person,
+        PresetArg::Vehicle => Preset::Vehicle,
+    };
+    let mut config = TrainConfig::preset(preset);
+    config.seed = args.seed;
+    if let Some(v) = args.epochs {
+        config.epochs = v;
+    }
+    if let Some(v) = args.batch_size {
+        config.batch_size = v;
+    }
+    if let Some(v) = args.learning_rate {
+        config.learning_rate = v;
+    }
+    if let Some(v) = args.train_fraction {
+        config.train_fraction = v;
+    }
+    if let Some(v) = args.max_positives {
+        config.max_positives = v;
+    }
+    if let Some(s) = &args.input_size {
+        let (h, w) = parse_size(s)?;
+        config.input_height = h;
+        config.input_width = w;
+    }
+    config.validate()?;
+
+    let patches = match (&args.positives, &args.negatives, &args.sequence) {
+        (Some(p), Some(n), None) => {
+            patches_from_folders(p, n, config.input_height, config.input_width)?
+        }
+        (None, None, Some(seq)) => {
+            ui.info(format!("cutting patches from {}…", seq.display()));
+            patches_from_sequence(seq, &config)?
+        }
+        _ => bail!("give --positives and --negatives, or --sequence"),
+    };
+    let n_pos = patches.labels.iter().filter(|&&l| l == 1).count();
+    ui.info(format!(
+        "{} patches ({} positive, {} negative), {}×{} px; {} epochs, batch {}, lr {}",
+        patches.len(),
+        n_pos,
+        patches.len() - n_pos,
+        config.input_height,
+        config.input_width,
+        config.epochs,
+        config.batch_size,
+        config.learning_rate
+    ));
+    let bar = ui.progress(None, "train");
+    let (net, report) = train(&patches, &config, &mut |p| {
+        if bar.length().is_none() {
+            bar.set_length(p.batches_total);
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "{msg:>10} [{bar:30}] {pos}/{len} batches, eta {eta}",
+            ) {
+                bar.set_style(style.progress_chars("=> "));
+            }
+        }
+        bar.set_position(p.batches_done);
+        bar.set_message(format!("epoch {}", p.epoch));
+    })?;
+    bar.finish_and_clear();
+    for e in &report.epochs {
+        ui.detail(format!(
+            "epoch {:>3}: train loss {:.4}, test accuracy {:.4}",
+            e.epoch, e.train_loss, e.test_accuracy
+        ));
+    }
+    write_onnx(
+        &args.output,
+        &net,
+        &training_preprocessing(),
+        patches.window_scale,
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(path) = &args.report {
+        let json = serde_json::to_string_pretty(&report)? + "\n";
+        roadtrack::io::atomic::write_bytes_atomic(path, json.as_bytes())?;
+    }
+    ui.info(format!(
+        "test accuracy {:.4} on {} patches (trained on {}); wrote {}",
+        report.test_accuracy,
+        report.n_test,
+        report.n_train,
+        args.output.display()
+    ));
+    Ok(())
+}
