@@ -8,6 +8,8 @@
 //!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
 //! - [`scenario`]: a seeded point-target scenario generator with known truth.
 //! - [`bench`](mod@bench): per-stage timings for `roadtrack bench`.
+//! - [`track`](mod@track): foreground detection + PF or PHD with the colour likelihood on a
+//!   video or image sequence (`roadtrack track --method pf|phd`).
 //!
 //! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
 //! component, never one heap object per particle.
@@ -19,12 +21,14 @@ pub mod phd;
 pub mod points;
 pub mod resample;
 pub mod scenario;
+pub mod track;
 
 pub use motion::{ConstantVelocity, VelocityNoise};
 pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
 pub use phd::{LabelledPhd, PhdConfig, PhdTracker};
 pub use points::{PointFilterConfig, filter_points};
 pub use resample::ResamplingScheme;
+pub use track::{FilterMethod, FilterTrackConfig, FilterTrackOutput, track_frames, track_source};
 
 use crate::geometry::Point;
 use serde::{Deserialize, Serialize};

@@ -213,6 +213,11 @@ impl ParticleFilterTracker {
         self.objects.len()
     }
 
+    /// Ends the objects with these ids (e.g. tracks no detection has supported for a while).
+    pub fn end_objects(&mut self, ids: &[u64]) {
+        self.objects.retain(|o| !ids.contains(&o.id));
+    }
+
     /// Advances by one frame with this frame's detections (may be empty); returns every
     /// tracked object, sorted by id.
     ///

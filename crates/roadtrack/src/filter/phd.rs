@@ -543,6 +543,62 @@ impl LabelledPhd {
         }
     }
 
+    /// Step c) from detections: `per_point` unlabelled birth particles around each of
+    /// `points` (Gaussian, standard deviation `spread`), velocities from the birth prior;
+    /// each point carries weight `min(1, μ_Γ / M)` for `M` points.
+    // Choice: the birth intensity μ_Γ is spread over the detections the caller did not
+    // explain by an existing label (Ristic, Clark & Vo 2010, adaptive births, without the
+    // uniform importance correction of `add_measurement_births`), at most one object per
+    // detection. The paper's classifier is also its detector; with a foreground detector
+    // this puts births where objects appear instead of on a fixed grid.
+    pub fn add_births_at(&mut self, points: &[Point], per_point: usize, spread: f64) {
+        let mu = self.config.birth_rate;
+        if points.is_empty() || per_point == 0 || mu <= 0.0 {
+            return;
+        }
+        let w = (mu / points.len() as f64).min(1.0) / per_point as f64;
+        let s = self.config.birth_speed_sigma;
+        for &z in points {
+            for _ in 0..per_point {
+                let pos = Point::new(
+                    z.x + spread * self.gaussian(),
+                    z.y + spread * self.gaussian(),
+                );
+                let vel = Point::new(s * self.gaussian(), s * self.gaussian());
+                self.particles.push(pos, vel, w, 0);
+            }
+        }
+    }
+
+    /// Estimates of every label with positive weight, reported or not, sorted by label.
+    pub fn all_estimates(&self) -> Vec<LabelEstimate> {
+        self.label_members()
+            .into_iter()
+            .filter_map(|(label, idx)| {
+                let (pos, vel, weight) = self.particles.weighted_mean(idx.into_iter())?;
+                Some(LabelEstimate {
+                    label,
+                    pos,
+                    vel,
+                    weight,
+                })
+            })
+            .collect()
+    }
+
+    /// Removes every particle of `labels` (their weight leaves the expected count).
+    pub fn remove_labels(&mut self, labels: &[u32]) {
+        if labels.is_empty() {
+            return;
+        }
+        let keep: Vec<usize> = (0..self.particles.len())
+            .filter(|&i| !labels.contains(&self.particles.label[i]))
+            .collect();
+        let w: Vec<f64> = keep.iter().map(|&i| self.particles.w[i]).collect();
+        self.particles.select(&keep, 0.0);
+        self.particles.w = w;
+    }
+
     /// Step d) on images, eqs. 11–13 with `C(y)` per label (METHODS.md §3 d):
     ///
     /// ```text
@@ -1047,6 +1103,7 @@ pub struct PhdTracker {
     times: StageTimes,
     positions: Vec<Point>,
     h: Vec<f64>,
+    grid_births: bool,
 }
 
 impl std::fmt::Debug for PhdTracker {
@@ -1076,7 +1133,21 @@ impl PhdTracker {
             times: StageTimes::default(),
             positions: Vec::new(),
             h: Vec::new(),
+            grid_births: true,
         })
+    }
+
+    /// Turns the paper's grid births (step c) on (the default) or off, e.g. when births
+    /// come from detections ([`PhdTracker::step_with_births`]).
+    pub fn set_grid_births(&mut self, on: bool) {
+        self.grid_births = on;
+    }
+
+    /// Removes every particle of `labels` (see [`LabelledPhd::remove_labels`]).
+    pub fn remove_labels(&mut self, labels: &[u32]) {
+        if let Some(f) = self.filter.as_mut() {
+            f.remove_labels(labels);
+        }
     }
 
     /// Starts the first frame with `ρ` particles around each detection (one label each);
@@ -1117,6 +1188,22 @@ impl PhdTracker {
     /// # Errors
     /// When the frame size changes or the likelihood fails.
     pub fn step(&mut self, frame: &Frame) -> Result<Vec<TrackPoint>> {
+        self.step_with_births(frame, &[], 0, 0.0)
+    }
+
+    /// [`PhdTracker::step`] with detection births: `per_point` birth particles around each
+    /// of `births` ([`LabelledPhd::add_births_at`]), in addition to the grid births when
+    /// they are on.
+    ///
+    /// # Errors
+    /// When the frame size changes or the likelihood fails.
+    pub fn step_with_births(
+        &mut self,
+        frame: &Frame,
+        births: &[Point],
+        per_point: usize,
+        spread_px: f64,
+    ) -> Result<Vec<TrackPoint>> {
         let (w, h) = frame.size();
         let t0 = Instant::now();
         self.likelihood.begin_frame(&frame.image)?;
@@ -1155,7 +1242,10 @@ impl PhdTracker {
         if !first {
             filter.predict(1.0);
         }
-        filter.add_grid_births();
+        if self.grid_births {
+            filter.add_grid_births();
+        }
+        filter.add_births_at(births, per_point, spread_px);
         self.times.predict += t0.elapsed();
 
         let t0 = Instant::now();
