@@ -16,6 +16,10 @@ pub enum Method {
     Relaxation,
     /// Spatio-temporal MRF model on 8×8 blocks (seed 002).
     Mrf,
+    /// Basic particle filter, ρ particles per object, colour likelihood (seed 004).
+    Pf,
+    /// Labelled SMC-PHD filter, colour likelihood (seed 004).
+    Phd,
 }
 
 /// MRF model variant.
@@ -40,7 +44,7 @@ pub enum GroundPointArg {
 /// and speeds when a calibration is given) and GeoJSON.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
+    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
 )]
 pub struct Args {
     /// Video file, folder of numbered images, or MOTChallenge sequence folder.
@@ -55,7 +59,8 @@ pub struct Args {
     #[arg(long, value_name = "F.csv")]
     pub trajectories: Option<PathBuf>,
     /// Method config TOML (relaxation: `TrackerConfig` with a `[relaxation]` table;
-    /// mrf: `MrfConfig`). Fields left out keep the paper's defaults.
+    /// mrf: `MrfConfig`; pf/phd: `FilterTrackConfig` with `[pf]`, `[phd]`, `[likelihood]`,
+    /// `[detector]` tables). Fields left out keep the paper's defaults.
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
     /// Foreground-extraction config TOML (`DetectorConfig`) for relaxation.
@@ -75,7 +80,7 @@ pub struct Args {
     /// Write the trajectories on the ground as GeoJSON (needs --calibration).
     #[arg(long, value_name = "F.geojson", requires = "calibration")]
     pub geojson: Option<PathBuf>,
-    /// Random seed (MRF Gibbs sampler).
+    /// Random seed (MRF Gibbs sampler, particle filters).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Relaxation: frames a vehicle may go undetected and keep its id (overrides the config).
@@ -142,6 +147,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 object_map_dir: args.object_maps.clone(),
             };
             roadtrack::mrf::track_source(&cfg, &args.input, &opts, &mut progress)?
+        }
+        Method::Pf | Method::Phd => {
+            use roadtrack::filter::track::{FilterMethod, FilterTrackConfig, track_source};
+            let cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
+            let method = if args.method == Method::Pf { FilterMethod::Pf } else { FilterMethod::Phd };
+            track_source(method, &cfg, &args.input, &options, args.seed, &mut progress)?.points
         }
     };
     bar.finish_and_clear();
