@@ -3,6 +3,7 @@
 //! ```text
 //! cargo run --release --example mrf_bench -- sim SCENE FRAMES [THREADS]   # 640×480 oblique
 //! cargo run --release --example mrf_bench -- video PATH FRAMES [THREADS]
+//! cargo run --release --example mrf_bench -- kernel   # block-matching paths, one thread
 //! ```
 //!
 //! Prints one line per variant (improved, legacy): frames/s by wall clock and per CPU
@@ -20,6 +21,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let what = args.get(1).map_or("crossing", String::as_str);
     let n: u32 = args.get(2).map_or(Ok(200), |s| s.parse())?;
     let threads: usize = args.get(3).map_or(Ok(1), |s| s.parse())?;
+    if kind == "kernel" {
+        return kernel();
+    }
     let frames: Vec<Frame> = if kind == "video" {
         let opts = roadtrack::io::SourceOptions {
             end: Some(n),
@@ -97,4 +101,62 @@ fn process_cpu_s() -> f64 {
         (Some(u), Some(s)) => (u + s) / 100.0,
         _ => 0.0,
     }
+}
+
+/// CPU time per block of each block-matching path on one 640×480 pair of the simulated
+/// crossing (±24 px, 1 000 blocks spread over the frame, guess (0, 0)).
+fn kernel() -> Result<(), Box<dyn std::error::Error>> {
+    use roadtrack::mrf::block_matching::{
+        gray_from_rgb, match_block_reference, match_block_simd, match_block_with,
+    };
+    let config = SimConfig {
+        scene: "crossing".parse()?,
+        view: ViewKind::Oblique,
+        frames: 2,
+        ..SimConfig::default()
+    };
+    let run = simulate_in_memory(&config, 0)?;
+    let (a, b) = (
+        gray_from_rgb(&run.frames[0].image),
+        gray_from_rgb(&run.frames[1].image),
+    );
+    let blocks: Vec<(u32, u32)> = (0..1000u32)
+        .map(|k| (3 + k % 74, 3 + (k * 7) % 54))
+        .collect();
+    type Path = (&'static str, fn(&image::GrayImage, &image::GrayImage, u32, u32) -> u32);
+    let paths: [Path; 5] = [
+        ("brute force (reference)", |a, b, x, y| {
+            match_block_reference(a, b, x, y, 24).sad
+        }),
+        ("scalar rows, early termination", |a, b, x, y| {
+            match_block_with::<false>(a, b, x, y, 24, [0, 0]).sad
+        }),
+        ("SSE2 psadbw, early termination (before)", |a, b, x, y| {
+            match_block_with::<true>(a, b, x, y, 24, [0, 0]).sad
+        }),
+        ("SSE4.1 mpsadbw, exhaustive", |a, b, x, y| {
+            match_block_simd(a, b, x, y, 24, false).sad
+        }),
+        ("AVX2 vmpsadbw, exhaustive (now)", |a, b, x, y| {
+            match_block_simd(a, b, x, y, 24, true).sad
+        }),
+    ];
+    for (name, f) in paths {
+        // Repeat the block list until at least 1 s of CPU (the clock ticks at 10 ms).
+        let c0 = process_cpu_s();
+        let (mut n, mut acc) = (0usize, 0u64);
+        while process_cpu_s() - c0 < 1.0 {
+            for &(x, y) in &blocks {
+                acc += u64::from(f(&a, &b, x, y));
+            }
+            n += blocks.len();
+        }
+        let cpu = process_cpu_s() - c0;
+        println!(
+            "{name}: {:.2} µs/block of CPU ({n} blocks, mean SAD {:.1})",
+            1e6 * cpu / n as f64,
+            acc as f64 / n as f64
+        );
+    }
+    Ok(())
 }
