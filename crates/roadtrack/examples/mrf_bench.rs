@@ -123,7 +123,10 @@ fn kernel() -> Result<(), Box<dyn std::error::Error>> {
     let blocks: Vec<(u32, u32)> = (0..1000u32)
         .map(|k| (3 + k % 74, 3 + (k * 7) % 54))
         .collect();
-    type Path = (&'static str, fn(&image::GrayImage, &image::GrayImage, u32, u32) -> u32);
+    type Path = (
+        &'static str,
+        fn(&image::GrayImage, &image::GrayImage, u32, u32) -> u32,
+    );
     let paths: [Path; 5] = [
         ("brute force (reference)", |a, b, x, y| {
             match_block_reference(a, b, x, y, 24).sad
