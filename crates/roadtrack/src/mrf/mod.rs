@@ -221,6 +221,24 @@ pub struct StepStats {
     pub objects: u32,
 }
 
+/// Wall time spent in each stage of [`MrfTracker::step`], s (accumulated over calls; for
+/// profiling, see docs/PERFORMANCE.md "MRF").
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct StageTimes {
+    /// RGB → luminance.
+    pub luminance_s: f64,
+    /// Background subtraction and moving blocks.
+    pub background_s: f64,
+    /// Step 1, block matching.
+    pub matching_s: f64,
+    /// Step 2, propagation (and the legacy representative vectors).
+    pub propagation_s: f64,
+    /// Steps 3–5, the Gibbs sampler.
+    pub gibbs_s: f64,
+    /// Births, regions and output boxes.
+    pub output_s: f64,
+}
+
 /// The spatio-temporal MRF tracker: one Object-map per frame.
 #[derive(Debug, Clone)]
 pub struct MrfTracker {
@@ -239,6 +257,7 @@ pub struct MrfTracker {
     moving: Vec<bool>,
     next_id: ObjectId,
     stats: StepStats,
+    times: StageTimes,
 }
 
 impl MrfTracker {
@@ -266,6 +285,7 @@ impl MrfTracker {
             moving: vec![false; grid.len()],
             next_id: 1,
             stats: StepStats::default(),
+            times: StageTimes::default(),
         })
     }
 
@@ -307,6 +327,11 @@ impl MrfTracker {
         self.stats
     }
 
+    /// Wall time per stage accumulated over every [`MrfTracker::step`] so far.
+    pub fn stage_times(&self) -> StageTimes {
+        self.times
+    }
+
     /// Marks blocks whose foreground fraction reaches `moving_fraction`.
     fn moving_from_mask(&self, mask: &GrayImage) -> Vec<bool> {
         let cols = self.grid.cols as usize;
@@ -338,7 +363,15 @@ impl MrfTracker {
                 expected: (self.width, self.height),
             });
         }
+        let mut clock = std::time::Instant::now();
+        let mut lap = |acc: &mut f64| {
+            let now = std::time::Instant::now();
+            *acc += (now - clock).as_secs_f64();
+            clock = now;
+        };
+        let mut times = self.times;
         let gray = gray_from_rgb(&frame.image);
+        lap(&mut times.luminance_s);
         let background = match self.background.as_mut() {
             Some(b) => b,
             None => self.background.insert(BackgroundModel::from_samples(
@@ -348,6 +381,7 @@ impl MrfTracker {
         };
         let mask = background.apply(frame.index, &frame.image)?;
         let moving = self.moving_from_mask(&mask);
+        lap(&mut times.background_s);
         let border = self.config.border_blocks;
         let mut stats = StepStats {
             moving_blocks: moving.iter().filter(|&&m| m).count() as u32,
@@ -382,6 +416,7 @@ impl MrfTracker {
                     motion.vectors[b] = Some(m.vector);
                 }
                 stats.matched_blocks = blocks.len() as u32;
+                lap(&mut times.matching_s);
                 // Step 2.
                 let p = propagate::propagate(
                     &self.map,
@@ -407,7 +442,9 @@ impl MrfTracker {
                     frame: frame.index,
                 };
                 stats.sites = p.sites.len() as u32;
+                lap(&mut times.propagation_s);
                 stats.gibbs = gibbs::optimise(&ctx, &p.sites, &mut ids, &mut vectors);
+                lap(&mut times.gibbs_s);
                 self.motion = motion;
                 (ids, vectors)
             }
@@ -436,7 +473,7 @@ impl MrfTracker {
         let regions = self.map.regions();
         stats.objects = regions.len() as u32;
         self.stats = stats;
-        Ok(regions
+        let out = regions
             .into_iter()
             .filter(|r| r.area_blocks >= self.config.min_output_blocks)
             .map(|r| TrackPoint {
@@ -450,7 +487,10 @@ impl MrfTracker {
                 score: 1.0,
                 ground: None,
             })
-            .collect())
+            .collect();
+        lap(&mut times.output_s);
+        self.times = times;
+        Ok(out)
     }
 }
 
@@ -538,6 +578,8 @@ pub struct MrfBench {
     pub mean_sites: f64,
     /// Mean sweeps per frame with sites.
     pub mean_sweeps: f64,
+    /// Wall time per stage over all frames, s.
+    pub stages: StageTimes,
 }
 
 /// Tracks `frames` (already decoded, so decoding is not timed) with `threads` rayon threads
@@ -585,6 +627,7 @@ pub fn bench_mrf(
         Ok(())
     })?;
     let seconds = start.elapsed().as_secs_f64();
+    let stages = tracker.stage_times();
     let n = frames.len() as f64;
     Ok(MrfBench {
         frames: frames.len() as u32,
@@ -600,6 +643,7 @@ pub fn bench_mrf(
         } else {
             0.0
         },
+        stages,
     })
 }
 

@@ -80,6 +80,61 @@ pub fn separated(truth: &[TruthRegion], map: &ObjectMap) -> Vec<(u64, u32, bool)
         .collect()
 }
 
+/// Truth regions of one frame from a per-pixel owner map (row-major `width × height`, e.g.
+/// `sim::Simulation::visible_object_ids`): a block is visible for the object that owns most
+/// of its 64 pixels (ties: the smaller id) when that is at least `min_px` pixels. Blocks within
+/// `border_blocks` of the frame edge are left out: the tracker never labels them.
+/// `objects` lists `(id, full box, occluded)`; the result has one region per object, in that
+/// order (objects with no visible block get an empty set).
+// Choice: `min_px` = 16 in the experiments, the tracker's own rule for a moving block
+// (`moving_fraction` 0.25 of 64 px).
+pub fn truth_regions_from_owner(
+    owner: &[Option<u64>],
+    width: u32,
+    height: u32,
+    objects: &[(u64, BBox, bool)],
+    border_blocks: u32,
+    min_px: u32,
+) -> Vec<TruthRegion> {
+    let grid = super::object_map::BlockGrid::for_frame(width, height);
+    let mut blocks: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
+    let stride = width as usize;
+    let bp = super::object_map::BLOCK_PX as usize;
+    let mut counts: BTreeMap<u64, u32> = BTreeMap::new();
+    for b in 0..grid.len() {
+        let (bx, by) = grid.coords(b);
+        if grid.in_border(bx, by, border_blocks) {
+            continue;
+        }
+        counts.clear();
+        for r in 0..bp {
+            let row = (by as usize * bp + r) * stride + bx as usize * bp;
+            for o in owner.get(row..row + bp).into_iter().flatten().flatten() {
+                *counts.entry(*o).or_insert(0) += 1;
+            }
+        }
+        // Most pixels, then the smaller id (BTreeMap order keeps the first maximum).
+        let mut best: Option<(u64, u32)> = None;
+        for (&id, &n) in &counts {
+            if best.is_none_or(|(_, bn)| n > bn) {
+                best = Some((id, n));
+            }
+        }
+        if let Some((id, _)) = best.filter(|&(_, n)| n >= min_px) {
+            blocks.entry(id).or_default().push(b);
+        }
+    }
+    objects
+        .iter()
+        .map(|&(id, bbox, occluded)| TruthRegion {
+            id,
+            bbox,
+            visible_blocks: blocks.remove(&id).unwrap_or_default(),
+            occluded,
+        })
+        .collect()
+}
+
 /// The Fig. 10 curve: success rate of occluded objects per visible area `1..=max_bin`
 /// blocks (the last bin is "≥ max_bin"). `truth[f]` and `maps[f]` belong to the same frame;
 /// only objects flagged `occluded` count.
@@ -152,6 +207,38 @@ mod tests {
             separated(&[a, b], &map),
             vec![(10, 4, true), (20, 3, false)]
         );
+    }
+
+    #[test]
+    fn truth_blocks_go_to_the_pixel_majority_outside_the_border() {
+        // 32 × 16 px = 4 × 2 blocks. Object 7 owns all of block (1, 0) and 40 px of (2, 0),
+        // object 9 the other 24 px of (2, 0) and 10 px of (3, 0) (below min_px 16).
+        let (w, h) = (32u32, 16u32);
+        let mut owner = vec![None; (w * h) as usize];
+        for y in 0..8usize {
+            for x in 8..16usize {
+                owner[y * 32 + x] = Some(7);
+            }
+            for x in 16..24usize {
+                owner[y * 32 + x] = Some(if y < 5 { 7 } else { 9 });
+            }
+        }
+        for x in 24..29usize {
+            owner[x] = Some(9);
+            owner[32 + x] = Some(9);
+        }
+        let objs = [
+            (7, BBox::default(), true),
+            (9, BBox::default(), true),
+            (5, BBox::default(), false),
+        ];
+        let r = truth_regions_from_owner(&owner, w, h, &objs, 0, 16);
+        assert_eq!(r[0].visible_blocks, vec![1, 2]);
+        assert!(r[1].visible_blocks.is_empty());
+        assert!(r[2].visible_blocks.is_empty());
+        // A 1-block border leaves nothing of a 4 × 2 grid.
+        let r = truth_regions_from_owner(&owner, w, h, &objs, 1, 16);
+        assert!(r.iter().all(|x| x.visible_blocks.is_empty()));
     }
 
     #[test]

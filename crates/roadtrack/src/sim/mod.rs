@@ -161,6 +161,8 @@ pub struct Simulation {
     steps_per_frame: u32,
     step_s: f64,
     det_rng: Rng,
+    /// Ids of the agents of the last rendered frame, in render order.
+    last_agent_ids: Vec<u64>,
 }
 
 impl std::fmt::Debug for Simulation {
@@ -251,6 +253,7 @@ impl Simulation {
             steps_per_frame,
             step_s,
             det_rng: rng(seed, Stream::Detections),
+            last_agent_ids: Vec::new(),
         })
     }
 
@@ -277,6 +280,17 @@ impl Simulation {
     /// The configuration.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// Which object each pixel of the last frame shows (row-major, `None` = background),
+    /// from the renderer's depth test: the visible pixel sets behind `visibility`. For
+    /// measures that need where an object is visible (seed 002 Fig. 10).
+    pub fn visible_object_ids(&self) -> Vec<Option<u64>> {
+        self.renderer
+            .owner()
+            .iter()
+            .map(|&o| self.last_agent_ids.get(o as usize).copied())
+            .collect()
     }
 
     fn agents(&mut self, frame: u32) -> Vec<AgentState> {
@@ -315,6 +329,7 @@ impl Simulation {
             .camera
             .shifted([f64::from(shift[0]), f64::from(shift[1])]);
         let (image, pixels) = self.renderer.render(&cam, shift, &agents, frame, time_s);
+        self.last_agent_ids = agents.iter().map(|a| a.id).collect();
         let mut truth = Vec::new();
         for (a, px) in agents.iter().zip(&pixels) {
             let Some(bbox) = px.bbox else { continue };

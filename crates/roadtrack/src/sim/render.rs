@@ -563,6 +563,12 @@ impl Renderer {
         })
     }
 
+    /// The depth-tested owner of each pixel of the last rendered frame (row-major): the
+    /// index of the agent in `render`'s `agents`, `u32::MAX` for background.
+    pub fn owner(&self) -> &[u32] {
+        &self.owner
+    }
+
     /// Renders one frame of `agents` seen by `camera` (already shifted by `shift_px`, the
     /// integer camera jitter of this frame): the image and, per agent in input order,
     /// what is visible of it.
