@@ -28,6 +28,10 @@ enum Command {
     Check(cmd::check::Args),
     Plot(cmd::plot::Args),
     Render(cmd::render::Args),
+    Simulate(cmd::simulate::Args),
+    Match(cmd::matching::Args),
+    Sweep(cmd::sweep::Args),
+    Experiment(cmd::experiment::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +43,10 @@ fn main() -> ExitCode {
         Command::Check(args) => cmd::check::run(args, &ui),
         Command::Plot(args) => cmd::plot::run(args, &ui),
         Command::Render(args) => cmd::render::run(args, &ui),
+        Command::Simulate(args) => cmd::simulate::run(args, &ui),
+        Command::Match(args) => cmd::matching::run(args, &ui),
+        Command::Sweep(args) => cmd::sweep::run(args, &ui),
+        Command::Experiment(args) => cmd::experiment::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

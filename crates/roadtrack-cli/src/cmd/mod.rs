@@ -3,5 +3,9 @@
 pub mod bench;
 pub mod check;
 pub mod detect;
+pub mod experiment;
+pub mod matching;
 pub mod plot;
 pub mod render;
+pub mod simulate;
+pub mod sweep;
