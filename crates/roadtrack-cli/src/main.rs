@@ -30,6 +30,10 @@ enum Command {
     Check(cmd::check::Args),
     Plot(cmd::plot::Args),
     Render(cmd::render::Args),
+    Experiment(cmd::experiment::Args),
+    Match(cmd::matching::Args),
+    Simulate(cmd::simulate::Args),
+    Sweep(cmd::sweep::Args),
     Track(cmd::track::Args),
     Train(cmd::train::Args),
 }
@@ -45,6 +49,10 @@ fn main() -> ExitCode {
         Command::Check(args) => cmd::check::run(args, &ui),
         Command::Plot(args) => cmd::plot::run(args, &ui),
         Command::Render(args) => cmd::render::run(args, &ui),
+        Command::Experiment(args) => cmd::experiment::run(args, &ui),
+        Command::Match(args) => cmd::matching::run(args, &ui),
+        Command::Simulate(args) => cmd::simulate::run(args, &ui),
+        Command::Sweep(args) => cmd::sweep::run(args, &ui),
         Command::Track(args) => cmd::track::run(args, &ui),
         Command::Train(args) => cmd::train::run(args, &ui),
     };

@@ -1,0 +1,182 @@
+//! `roadtrack match`: two-frame vehicle matching by bidirectional probabilistic relaxation
+//! (METHODS.md §1). Also the parameter flags `sweep` and `experiment` share.
+
+use crate::common::{Ui, load_config};
+use anyhow::{Context, Result};
+use roadtrack::io::{detections::read_detections, matches::write_matches};
+use roadtrack::relaxation::{DecisionRule, RelaxationConfig, Variant, match_vehicles};
+use std::path::{Path, PathBuf};
+
+/// Every parameter of `RelaxationConfig` as a flag; each overrides `--config`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RelaxArgs {
+    /// TOML file with a `RelaxationConfig` (see configs/relaxation.toml).
+    #[arg(long, value_name = "F.toml")]
+    pub config: Option<PathBuf>,
+    /// Method of Table 1 [default: colour-bidirectional (d)].
+    #[arg(long, value_enum, value_name = "V")]
+    pub variant: Option<VariantArg>,
+    /// A, eqs. 19–20: weight of a label's own evidence [default: 0.5].
+    #[arg(long, value_name = "A")]
+    pub own_weight: Option<f64>,
+    /// B, eqs. 19–20: weight of the same-direction neighbour support [default: 1].
+    #[arg(long, value_name = "B")]
+    pub forward_support_weight: Option<f64>,
+    /// C, eqs. 19–20: weight of the opposite-direction support (bidirectional variants)
+    /// [default: 1].
+    #[arg(long, value_name = "C")]
+    pub backward_support_weight: Option<f64>,
+    /// T, eq. 15: displacements within this distance are similar, px [default: 20].
+    #[arg(long, value_name = "T")]
+    pub similar_displacement_px: Option<f64>,
+    /// R, eq. 16: vehicles within this distance are neighbours, px [default: 200].
+    #[arg(long, value_name = "R")]
+    pub neighbour_radius_px: Option<f64>,
+    /// D, eq. 3: half-width of the square search gate, px [default: 150].
+    #[arg(long, value_name = "D")]
+    pub gate_half_width_px: Option<f64>,
+    /// Stop when no probability changes by more than this [default: 1e-6].
+    #[arg(long, value_name = "E")]
+    pub epsilon: Option<f64>,
+    /// Iteration cap [default: 50].
+    #[arg(long, value_name = "N")]
+    pub max_iterations: Option<u32>,
+    /// How probabilities become pairs [default: argmax, the paper's].
+    #[arg(long, value_enum)]
+    pub decision: Option<DecisionArg>,
+}
+
+/// `--variant` values (INTERFACES.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum VariantArg {
+    /// (d) bidirectional, colour start: the paper's method.
+    #[value(alias = "color-bidirectional", alias = "d")]
+    ColourBidirectional,
+    /// (c) bidirectional, uniform start.
+    #[value(alias = "c")]
+    Bidirectional,
+    /// (b) unidirectional, colour start.
+    #[value(alias = "color-unidirectional", alias = "b")]
+    ColourUnidirectional,
+    /// (a) unidirectional, uniform start.
+    #[value(alias = "a")]
+    Unidirectional,
+}
+
+impl From<VariantArg> for Variant {
+    fn from(v: VariantArg) -> Self {
+        match v {
+            VariantArg::ColourBidirectional => Variant::ColourBidirectional,
+            VariantArg::Bidirectional => Variant::Bidirectional,
+            VariantArg::ColourUnidirectional => Variant::ColourUnidirectional,
+            VariantArg::Unidirectional => Variant::Unidirectional,
+        }
+    }
+}
+
+/// `--decision` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DecisionArg {
+    /// Each vehicle its most probable label (the paper's).
+    Argmax,
+    /// Pairs one-to-one, greedily by probability.
+    OneToOne,
+}
+
+impl RelaxArgs {
+    /// The configuration: `--config` (or the default) with every given flag applied,
+    /// validated.
+    pub fn config(&self) -> Result<RelaxationConfig> {
+        let mut c: RelaxationConfig = load_config(self.config.as_deref())?;
+        if let Some(v) = self.variant {
+            c.variant = v.into();
+        }
+        let set = |field: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *field = v;
+            }
+        };
+        set(&mut c.own_weight, self.own_weight);
+        set(&mut c.forward_support_weight, self.forward_support_weight);
+        set(&mut c.backward_support_weight, self.backward_support_weight);
+        set(&mut c.similar_displacement_px, self.similar_displacement_px);
+        set(&mut c.neighbour_radius_px, self.neighbour_radius_px);
+        set(&mut c.gate_half_width_px, self.gate_half_width_px);
+        set(&mut c.epsilon, self.epsilon);
+        if let Some(n) = self.max_iterations {
+            c.max_iterations = n;
+        }
+        if let Some(d) = self.decision {
+            c.decision = match d {
+                DecisionArg::Argmax => DecisionRule::Argmax,
+                DecisionArg::OneToOne => DecisionRule::OneToOne,
+            };
+        }
+        c.validate()?;
+        Ok(c)
+    }
+}
+
+/// Match the vehicles of two frames (METHODS.md §1, seed 000).
+///
+/// Each frame is a detections CSV (`x,y` required; `id`; `r,g,b` for the colour
+/// variants). Writes the matches CSV `id1,id2,probability`: one row per frame-1 vehicle in
+/// input order (`id2` empty = no partner), then one row per frame-2 vehicle nobody chose
+/// (`id1` empty = appeared). Default parameters are the paper's (A 0.5, B 1, C 1, T 20 px,
+/// R 200 px, D 150 px, 50 iterations).
+#[derive(Debug, clap::Args)]
+#[command(after_help = "Example:\n  \
+    roadtrack match frame1.csv frame2.csv -o matches.csv\n  \
+    roadtrack match frame1.csv frame2.csv --variant bidirectional --gate-half-width-px 100 -o -")]
+pub struct Args {
+    /// Detections of frame 1.
+    pub frame1: PathBuf,
+    /// Detections of frame 2.
+    pub frame2: PathBuf,
+    /// Output matches CSV (`-` for standard output).
+    #[arg(short, long, default_value = "matches.csv")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub relax: RelaxArgs,
+}
+
+/// Reads a detections file for matching; every detection must be in one frame.
+fn read_frame(path: &Path) -> Result<Vec<roadtrack::Detection>> {
+    let d = read_detections(path)?;
+    if let (Some(first), Some(other)) = (d.first(), d.iter().find(|x| x.frame != d[0].frame)) {
+        anyhow::bail!(
+            "{}: holds frames {} and {}; give one frame per file",
+            path.display(),
+            first.frame,
+            other.frame
+        );
+    }
+    Ok(d)
+}
+
+pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    let cfg = args.relax.config()?;
+    let f1 = read_frame(&args.frame1)?;
+    let f2 = read_frame(&args.frame2)?;
+    let m = match_vehicles(&f1, &f2, &cfg).with_context(|| {
+        format!(
+            "matching {} with {}",
+            args.frame1.display(),
+            args.frame2.display()
+        )
+    })?;
+    let rows = m.rows();
+    write_matches(&args.output, &rows)?;
+    let paired = m.partner.iter().filter(|p| p.is_some()).count();
+    ui.info(format!(
+        "{} → {} vehicles: {paired} paired, {} without partner, {} appeared; {} iterations{} → {}",
+        f1.len(),
+        f2.len(),
+        f1.len() - paired,
+        rows.len() - f1.len(),
+        m.iterations,
+        if m.converged { "" } else { " (not converged)" },
+        args.output.display()
+    ));
+    Ok(())
+}
