@@ -28,6 +28,8 @@ enum Command {
     Check(cmd::check::Args),
     Plot(cmd::plot::Args),
     Render(cmd::render::Args),
+    Evaluate(cmd::evaluate::Args),
+    Filter(cmd::filter::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +41,8 @@ fn main() -> ExitCode {
         Command::Check(args) => cmd::check::run(args, &ui),
         Command::Plot(args) => cmd::plot::run(args, &ui),
         Command::Render(args) => cmd::render::run(args, &ui),
+        Command::Evaluate(args) => cmd::evaluate::run(args, &ui),
+        Command::Filter(args) => cmd::filter::run(args, &ui),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,5 +3,7 @@
 pub mod bench;
 pub mod check;
 pub mod detect;
+pub mod evaluate;
+pub mod filter;
 pub mod plot;
 pub mod render;

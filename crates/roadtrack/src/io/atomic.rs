@@ -75,7 +75,10 @@ mod tests {
         let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
         let p = dir.path().join("o.txt");
         write_bytes_atomic(&p, b"x")?;
-        let mode = std::fs::metadata(&p).map_err(|e| Error::io(&p, e))?.permissions().mode();
+        let mode = std::fs::metadata(&p)
+            .map_err(|e| Error::io(&p, e))?
+            .permissions()
+            .mode();
         assert_eq!(mode & 0o777, 0o644);
         Ok(())
     }
