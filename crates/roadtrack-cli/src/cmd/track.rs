@@ -151,8 +151,20 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         Method::Pf | Method::Phd => {
             use roadtrack::filter::track::{FilterMethod, FilterTrackConfig, track_source};
             let cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
-            let method = if args.method == Method::Pf { FilterMethod::Pf } else { FilterMethod::Phd };
-            track_source(method, &cfg, &args.input, &options, args.seed, &mut progress)?.points
+            let method = if args.method == Method::Pf {
+                FilterMethod::Pf
+            } else {
+                FilterMethod::Phd
+            };
+            track_source(
+                method,
+                &cfg,
+                &args.input,
+                &options,
+                args.seed,
+                &mut progress,
+            )?
+            .points
         }
     };
     bar.finish_and_clear();

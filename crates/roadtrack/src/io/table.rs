@@ -162,6 +162,15 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
     }
 }
 
+/// `str::trim`, skipped when both ends are visible ASCII (the usual case).
+pub(crate) fn trim(s: &str) -> &str {
+    match s.as_bytes() {
+        [a, .., z] if a.is_ascii_graphic() && z.is_ascii_graphic() => s,
+        [a] if a.is_ascii_graphic() => s,
+        _ => s.trim(),
+    }
+}
+
 /// Parses one number of a header-less, comma-separated line (MOTChallenge files).
 pub(crate) fn field_f64(
     path: &Path,
@@ -170,17 +179,15 @@ pub(crate) fn field_f64(
     i: usize,
     name: &str,
 ) -> Result<f64> {
-    let s = fields
-        .get(i)
-        .ok_or_else(|| {
-            Error::parse(
-                path,
-                line,
-                name,
-                format!("missing: the line has {} fields", fields.len()),
-            )
-        })?
-        .trim();
+    let s = fields.get(i).ok_or_else(|| {
+        Error::parse(
+            path,
+            line,
+            name,
+            format!("missing: the line has {} fields", fields.len()),
+        )
+    })?;
+    let s = trim(s);
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() => Ok(x),
         Ok(_) => Err(Error::parse(

@@ -160,7 +160,8 @@ pub struct DetectionTable {
     pub tp: u64,
     /// Detections not matched.
     pub fp: u64,
-    /// Truth objects not matched.
+    /// Truth objects not matched (`fn` in JSON).
+    #[serde(rename = "fn")]
     pub fn_: u64,
     /// `tp / (tp + fp)`.
     pub precision: f64,
