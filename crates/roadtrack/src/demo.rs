@@ -107,7 +107,34 @@ pub fn methods() -> Vec<(&'static str, Runner)> {
     vec![
         ("relaxation", run_relaxation as Runner),
         ("mrf", run_mrf as Runner),
+        ("pf", run_pf as Runner),
+        ("phd", run_phd as Runner),
     ]
+}
+
+fn run_filter(
+    method: crate::filter::track::FilterMethod,
+    seq: &Path,
+    seed: u64,
+) -> Result<Vec<TrackPoint>> {
+    let cfg = crate::filter::track::FilterTrackConfig::default();
+    let out = crate::filter::track::track_source(
+        method,
+        &cfg,
+        seq,
+        &SourceOptions::default(),
+        seed,
+        &mut |_, _| {},
+    )?;
+    Ok(out.points)
+}
+
+fn run_pf(seq: &Path, seed: u64) -> Result<Vec<TrackPoint>> {
+    run_filter(crate::filter::track::FilterMethod::Pf, seq, seed)
+}
+
+fn run_phd(seq: &Path, seed: u64) -> Result<Vec<TrackPoint>> {
+    run_filter(crate::filter::track::FilterMethod::Phd, seq, seed)
 }
 
 /// The intersection's approach arms and a counting line per arm, in ground metres
