@@ -520,16 +520,8 @@ pub fn track_source(
     let first = open(input, &options.source)?;
     let (w, h) = (first.info.width, first.info.height);
     let total = first.info.selected_frames;
-    let wanted = bootstrap_positions(total, config.background.bootstrap_frames);
-    let mut samples = Vec::with_capacity(wanted.len());
-    let mut next = wanted.iter().peekable();
-    for (pos, frame) in first.enumerate() {
-        let Some(&&want) = next.peek() else { break };
-        if pos as u32 == want {
-            samples.push(frame?.image);
-            next.next();
-        }
-    }
+    let samples =
+        crate::background::sample_frames(first, total, config.background.bootstrap_frames)?;
     let mut tracker = MrfTracker::new(config.clone(), w, h, options.seed)?;
     tracker.set_background(BackgroundModel::from_samples(
         &samples,
