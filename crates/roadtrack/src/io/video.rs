@@ -64,6 +64,18 @@ fn spawn_error(program: &'static str, e: &std::io::Error) -> Error {
     }
 }
 
+/// Reads the child's stderr on a thread (so a chatty ffmpeg never blocks on a full pipe);
+/// the text is joined when the child is finished, for error messages.
+fn collect_stderr(child: &mut Child) -> Option<std::thread::JoinHandle<String>> {
+    child.stderr.take().map(|mut s| {
+        std::thread::spawn(move || {
+            let mut buf = String::new();
+            let _ = s.read_to_string(&mut buf);
+            buf
+        })
+    })
+}
+
 /// Whether `ffmpeg` and `ffprobe` can be run.
 pub fn ffmpeg_available() -> bool {
     ["ffmpeg", "ffprobe"].iter().all(|p| {
@@ -150,13 +162,7 @@ impl VideoReader {
             .stderr(Stdio::piped());
         let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
         let stdout = child.stdout.take();
-        let stderr = child.stderr.take().map(|mut s| {
-            std::thread::spawn(move || {
-                let mut buf = String::new();
-                let _ = s.read_to_string(&mut buf);
-                buf
-            })
-        });
+        let stderr = collect_stderr(&mut child);
         Ok(Self {
             path: path.to_owned(),
             child: Some(child),
@@ -381,13 +387,7 @@ impl VideoWriter {
             .stderr(Stdio::piped());
         let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
         let stdin = child.stdin.take();
-        let stderr = child.stderr.take().map(|mut s| {
-            std::thread::spawn(move || {
-                let mut buf = String::new();
-                let _ = s.read_to_string(&mut buf);
-                buf
-            })
-        });
+        let stderr = collect_stderr(&mut child);
         Ok(Self {
             path: path.to_owned(),
             tmp: Some(tmp),
