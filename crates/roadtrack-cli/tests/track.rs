@@ -131,3 +131,123 @@ fn demo_reports_every_method_with_pictures() {
         );
     }
 }
+
+const TINY_CNN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../roadtrack/tests/fixtures/tiny_classifier.onnx"
+);
+
+/// Tracks in `path` are valid: readable, inside `1..=frames`, finite positive boxes.
+fn check_tracks(path: &Path, frames: u32) {
+    let tracks = roadtrack::io::mot::read_tracks(path).expect("tracks");
+    assert!(!tracks.is_empty(), "no tracks in {}", path.display());
+    for p in &tracks {
+        assert!((1..=frames).contains(&p.frame), "frame {}", p.frame);
+        let b = p.bbox;
+        assert!(b.left.is_finite() && b.top.is_finite() && b.width > 0.0 && b.height > 0.0);
+    }
+}
+
+#[test]
+fn phd_with_the_tiny_cnn_writes_valid_tracks_and_bad_models_exit_1() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 12);
+    let tracks = dir.path().join("t.txt");
+    let o = bin()
+        .arg("track")
+        .arg(&seq)
+        .args(["--method", "phd", "--likelihood", "cnn", "-q", "--model"])
+        .arg(TINY_CNN)
+        .arg("-o")
+        .arg(&tracks)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    check_tracks(&tracks, 12);
+
+    // Missing model, a model that is not ONNX, no --model: exit 1 with the file named.
+    let text = dir.path().join("notes.onnx");
+    std::fs::write(&text, "not a model\n").expect("write");
+    let absent = dir.path().join("absent.onnx");
+    for (model, needle) in [
+        (Some(absent.as_path()), "absent.onnx"),
+        (Some(text.as_path()), "notes.onnx"),
+        (None, "--model"),
+    ] {
+        let mut cmd = bin();
+        cmd.arg("track")
+            .arg(&seq)
+            .args(["--method", "phd", "--likelihood", "cnn", "-q", "-o"])
+            .arg(dir.path().join("x.txt"));
+        if let Some(m) = model {
+            cmd.arg("--model").arg(m);
+        }
+        let o = cmd.output().expect("run");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+    // The SSD likelihood with a file that is not a TensorFlow graph names it too.
+    let o = bin()
+        .arg("track")
+        .arg(&seq)
+        .args(["--method", "phd", "--likelihood", "ssd", "-q", "--model"])
+        .arg(TINY_CNN)
+        .arg("-o")
+        .arg(dir.path().join("x.txt"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("tiny_classifier.onnx"));
+}
+
+#[test]
+fn a_model_trained_by_train_is_loaded_by_the_tracker_densely_and_per_window() {
+    // Train on one seed's sequence, track another seed's: what docs/EXPERIMENTS.md does
+    // at full size.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let train_seq = dir.path().join("train");
+    let cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames: 10,
+        ..Default::default()
+    };
+    roadtrack::sim::simulate(&cfg, 9, &train_seq, &mut |_, _| {}).expect("simulate");
+    let model = dir.path().join("person.onnx");
+    let o = bin()
+        .arg("train")
+        .arg("--sequence")
+        .arg(&train_seq)
+        .args(["--epochs", "1", "--max-positives", "60", "--seed", "1"])
+        .args(["--input-size", "32x16", "-q", "-o"])
+        .arg(&model)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 10);
+    for (method, stride) in [("phd", "8"), ("pf", "0")] {
+        let tracks = dir.path().join(format!("{method}.txt"));
+        let o = bin()
+            .arg("track")
+            .arg(&seq)
+            .args([
+                "--method",
+                method,
+                "--likelihood",
+                "cnn",
+                "--dense-stride",
+                stride,
+            ])
+            .arg("--model")
+            .arg(&model)
+            .args(["-q", "-o"])
+            .arg(&tracks)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        check_tracks(&tracks, 10);
+    }
+}

@@ -71,7 +71,7 @@ fn main() -> roadtrack::Result<()> {
         frames.len() as f64 / dense_s
     );
     if let (Some(path), Some(map)) = (heat, last_map) {
-        let img = image::GrayImage::from_fn(map.width as u32, map.height as u32, |x, y| {
+        let img = image::GrayImage::from_fn(map.cols as u32, map.rows as u32, |x, y| {
             image::Luma([(map.cell(y as usize, x as usize) * 255.0).round() as u8])
         });
         img.save(&path).map_err(|source| roadtrack::Error::Image {

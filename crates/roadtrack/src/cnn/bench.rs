@@ -84,7 +84,7 @@ pub fn bench_score_map(
     let t = Instant::now();
     for _ in 0..n_frames {
         let map = model.score_map(&frame, stride_px)?;
-        map.lookup(&pos, &mut out);
+        map.lookup(&pos, &mut out)?;
     }
     Ok(StageResult::new(
         &format!("cnn dense map, stride {stride_px} px, {particles} lookups"),
@@ -111,7 +111,7 @@ pub fn bench_ssd_score_map(
     let t = Instant::now();
     for _ in 0..n_frames {
         let map = det.score_map(frame, stride_px)?;
-        map.lookup(&pos, &mut out);
+        map.lookup(&pos, &mut out)?;
     }
     Ok(StageResult::new(
         &format!("ssd dense map, stride {stride_px} px, {particles} lookups"),

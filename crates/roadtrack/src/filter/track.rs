@@ -1,6 +1,8 @@
 //! Image trackers end to end (`roadtrack track --method pf|phd`): foreground detection
 //! ([`Detector`]) for track starts and births, the particle filter or the labelled SMC-PHD
-//! filter (METHODS.md §3) with the colour-histogram likelihood, optionally in dense mode.
+//! filter (METHODS.md §3) with the colour-histogram likelihood or a network (a CNN
+//! classifier or the SSD pedestrian detector, [`load_model_likelihood`]), per particle
+//! window or in dense mode.
 //!
 //! - [`track_source`]: a video, image folder or MOTChallenge sequence (two passes: the
 //!   first samples frames for the background, as `roadtrack detect`).
@@ -27,7 +29,7 @@ use crate::track::TrackPoint;
 use image::{GrayImage, RgbImage};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, RwLock};
 
 /// Which filter tracks.
@@ -93,6 +95,128 @@ pub enum LikelihoodKind {
     Foreground,
     /// The product of the two.
     ColourForeground,
+}
+
+/// Which network replaces the colour histogram as the class likelihood (`roadtrack track
+/// --likelihood`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    /// No network: the colour-histogram likelihood ([`TrackLikelihoodConfig`]).
+    #[default]
+    Colour,
+    /// Any ONNX classifier (`cnn::OnnxClassifier`), e.g. one written by `roadtrack train`.
+    Cnn,
+    /// The SSDLite pedestrian detector (`cnn::SsdPersonDetector`).
+    Ssd,
+}
+
+impl std::str::FromStr for ModelKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "colour" | "color" => Ok(Self::Colour),
+            "cnn" => Ok(Self::Cnn),
+            "ssd" => Ok(Self::Ssd),
+            _ => Err(Error::Invalid(format!(
+                "unknown likelihood {s:?}: expected colour, cnn or ssd"
+            ))),
+        }
+    }
+}
+
+/// A network likelihood to load ([`load_model_likelihood`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelSpec {
+    /// Which network.
+    pub kind: ModelKind,
+    /// The model file: required for `cnn`; for `ssd`, `None` = `cnn::ssd::default_model_path`.
+    pub path: Option<PathBuf>,
+    /// Dense mode grid spacing, px; 0 = score every particle's window. `None` = the
+    /// default: [`SSD_DEFAULT_DENSE_STRIDE_PX`] for `ssd`, per window for `cnn`.
+    pub dense_stride_px: Option<u32>,
+    /// Image px per model px (`cnn`: overrides the model's `roadtrack.window_scale`;
+    /// `ssd`: multiplies the per-window mode's window).
+    pub window_scale: Option<f64>,
+}
+
+/// Default dense stride of the SSD likelihood, px. Choice: 4 px, a tenth of a vtest
+/// pedestrian's width; the map costs far less than the network pass at any stride.
+pub const SSD_DEFAULT_DENSE_STRIDE_PX: u32 = 4;
+
+/// Loads the network of `spec` as a likelihood (dense when its stride is > 0); `None` for
+/// [`ModelKind::Colour`].
+///
+/// # Errors
+/// A missing model path for `cnn`; a model file that is absent or not the expected model
+/// (the error names the file; for the SSD it says to run `scripts/setup.sh --models`);
+/// a classifier without a dense-convertible head in dense mode; `cnn`/`ssd` in a build
+/// without the `cnn` feature.
+pub fn load_model_likelihood(spec: &ModelSpec) -> Result<Option<Box<dyn Likelihood>>> {
+    if let Some(s) = spec.window_scale
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(Error::Invalid(format!("window scale must be > 0, got {s}")));
+    }
+    match spec.kind {
+        ModelKind::Colour => Ok(None),
+        #[cfg(feature = "cnn")]
+        ModelKind::Cnn => {
+            use crate::cnn::{CnnConfig, OnnxClassifier, OnnxDense, dense_likelihood};
+            let path = spec.path.as_deref().ok_or_else(|| {
+                Error::Invalid("the cnn likelihood needs a model file (--model F.onnx)".into())
+            })?;
+            let cfg = CnnConfig {
+                window_scale: spec.window_scale,
+                ..CnnConfig::default()
+            };
+            let model = OnnxClassifier::load(path, &cfg)?;
+            match spec.dense_stride_px.unwrap_or(0) {
+                0 => Ok(Some(Box::new(model))),
+                stride => {
+                    let model = Arc::new(model);
+                    // Fail now, not on the first frame, when the head is not convertible.
+                    model.score_map(&RgbImage::new(8, 8), stride)?;
+                    Ok(Some(Box::new(dense_likelihood(OnnxDense {
+                        model,
+                        stride_px: stride,
+                    }))))
+                }
+            }
+        }
+        #[cfg(feature = "cnn")]
+        ModelKind::Ssd => {
+            use crate::cnn::{SsdConfig, SsdDense, SsdPersonDetector, dense_likelihood};
+            let path = match &spec.path {
+                Some(p) => p.clone(),
+                None => crate::cnn::ssd::default_model_path()
+                    .ok_or_else(|| Error::Invalid("no HOME to find the SSD model in".into()))?,
+            };
+            if !path.is_file() {
+                return Err(Error::Invalid(format!(
+                    "SSD model {} not found: run scripts/setup.sh --models (or give --model)",
+                    path.display()
+                )));
+            }
+            let mut cfg = SsdConfig::default();
+            if let Some(s) = spec.window_scale {
+                cfg.window_px = cfg.window_px.map(|v| v * s);
+            }
+            let det = SsdPersonDetector::load(&path, &cfg)?;
+            match spec.dense_stride_px.unwrap_or(SSD_DEFAULT_DENSE_STRIDE_PX) {
+                0 => Ok(Some(Box::new(det))),
+                stride => Ok(Some(Box::new(dense_likelihood(SsdDense {
+                    detector: Arc::new(det),
+                    stride_px: stride,
+                })))),
+            }
+        }
+        #[cfg(not(feature = "cnn"))]
+        kind @ (ModelKind::Cnn | ModelKind::Ssd) => Err(Error::Invalid(format!(
+            "the {kind:?} likelihood needs roadtrack built with the `cnn` feature \
+             (cargo build --features cnn)"
+        ))),
+    }
 }
 
 /// The likelihood of the image trackers.
@@ -332,18 +456,39 @@ pub fn track_source(
     seed: u64,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<FilterTrackOutput> {
+    track_source_with_model(method, cfg, input, options, seed, None, progress)
+}
+
+/// [`track_source`] with `model` (e.g. from [`load_model_likelihood`]) as the class
+/// likelihood instead of the colour histogram: one likelihood shared by every object (PF
+/// and PHD). [`TrackLikelihoodConfig::kind`] still applies (`foreground` ignores the
+/// model; `colour_foreground` multiplies the model by the foreground fraction); the
+/// window and box sizes stay the median detection box of the reference frames.
+///
+/// # Errors
+/// As [`track_source`].
+pub fn track_source_with_model(
+    method: FilterMethod,
+    cfg: &FilterTrackConfig,
+    input: &Path,
+    options: &SourceOptions,
+    seed: u64,
+    model: Option<Box<dyn Likelihood>>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<FilterTrackOutput> {
     cfg.validate()?;
     let first = source::open(input, options)?;
     let total = first.info.selected_frames;
     let detector = Detector::bootstrap(cfg.detector.clone(), first, total)?;
     let frames = source::open(input, options)?;
-    track_frames(
+    track_frames_with_model(
         method,
         cfg,
         detector,
         frames,
         total.map(u64::from),
         seed,
+        model,
         progress,
     )
 }
@@ -356,14 +501,34 @@ pub fn track_source(
 pub fn track_frames(
     method: FilterMethod,
     cfg: &FilterTrackConfig,
-    mut detector: Detector,
+    detector: Detector,
     frames: impl Iterator<Item = Result<Frame>>,
     total: Option<u64>,
     seed: u64,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<FilterTrackOutput> {
+    track_frames_with_model(method, cfg, detector, frames, total, seed, None, progress)
+}
+
+/// [`track_frames`] with a network likelihood, as [`track_source_with_model`].
+///
+/// # Errors
+/// As [`track_source`].
+#[allow(clippy::too_many_arguments)]
+pub fn track_frames_with_model(
+    method: FilterMethod,
+    cfg: &FilterTrackConfig,
+    mut detector: Detector,
+    frames: impl Iterator<Item = Result<Frame>>,
+    total: Option<u64>,
+    seed: u64,
+    mut model: Option<Box<dyn Likelihood>>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<FilterTrackOutput> {
     cfg.validate()?;
-    let shared = method == FilterMethod::Phd || cfg.likelihood.reference == ColourReference::Shared;
+    let shared = method == FilterMethod::Phd
+        || cfg.likelihood.reference == ColourReference::Shared
+        || model.is_some();
     let mut out = FilterTrackOutput::default();
     let mut runner: Option<Runner> = None;
     // Frames wait here until the shared reference is complete.
@@ -390,7 +555,14 @@ pub fn track_frames(
             }
             pending.push((frame, dets, found.mask));
             if !shared || reference_frames >= cfg.likelihood.reference_frames {
-                let r = runner.insert(Runner::new(method, cfg, &pending, seed, shared)?);
+                let r = runner.insert(Runner::new(
+                    method,
+                    cfg,
+                    &pending,
+                    seed,
+                    shared,
+                    model.take(),
+                )?);
                 for (f, d, m) in pending.drain(..) {
                     r.step(&f, &d, &m, &mut out)?;
                 }
@@ -401,7 +573,7 @@ pub fn track_frames(
     }
     if runner.is_none() && !pending.is_empty() {
         // Fewer frames with detections than `reference_frames`: use what there is.
-        let mut r = Runner::new(method, cfg, &pending, seed, shared)?;
+        let mut r = Runner::new(method, cfg, &pending, seed, shared, model.take())?;
         for (f, d, m) in pending.drain(..) {
             r.step(&f, &d, &m, &mut out)?;
         }
@@ -442,11 +614,12 @@ impl Runner {
         pending: &[(Frame, Vec<Detection>, GrayImage)],
         seed: u64,
         shared: bool,
+        model: Option<Box<dyn Likelihood>>,
     ) -> Result<Self> {
         let lc = cfg.likelihood;
         let mask: SharedMask = Arc::default();
         let (likelihood, window_px) = if shared {
-            let (lik, win) = shared_likelihood(&lc, pending, &mask)?;
+            let (lik, win) = shared_likelihood(&lc, pending, &mask, model)?;
             (Some(lik), Some(win))
         } else {
             (None, None)
@@ -665,12 +838,14 @@ fn one_to_one(tracked: &[(u64, Point)], dets: &[Detection], gate: f64) -> Vec<u6
     out
 }
 
-/// The shared colour likelihood: reference = mean histogram of every detection box in
-/// `pending`, window = median detection size; dense when configured.
+/// The shared likelihood: `model` when given, else the colour likelihood with reference =
+/// mean histogram of every detection box in `pending`, dense when configured; window =
+/// median detection size.
 fn shared_likelihood(
     lc: &TrackLikelihoodConfig,
     pending: &[(Frame, Vec<Detection>, GrayImage)],
     mask: &SharedMask,
+    model: Option<Box<dyn Likelihood>>,
 ) -> Result<(Box<dyn Likelihood>, (u32, u32))> {
     let mut hists = Vec::new();
     let (mut ws, mut hs) = (Vec::new(), Vec::new());
@@ -689,6 +864,9 @@ fn shared_likelihood(
     };
     let colour = lc.colour((median(&mut ws), median(&mut hs)));
     let window = (colour.window.width_px, colour.window.height_px);
+    if let Some(model) = model {
+        return Ok((with_foreground(lc, model, colour.window, mask), window));
+    }
     // No detection at all: an empty reference (every window scores exp(−λ), nothing is
     // tracked).
     let reference = ColourHistogram::mean(&hists)
@@ -954,6 +1132,119 @@ mod tests {
             "{near} of {} points on a car",
             in_memory.points.len()
         );
+        Ok(())
+    }
+
+    #[test]
+    fn model_specs_are_checked_before_loading() -> Result<()> {
+        assert!(load_model_likelihood(&ModelSpec::default())?.is_none());
+        assert_eq!("ssd".parse::<ModelKind>().ok(), Some(ModelKind::Ssd));
+        assert!("yolo".parse::<ModelKind>().is_err());
+        let no_path = ModelSpec {
+            kind: ModelKind::Cnn,
+            ..Default::default()
+        };
+        let err = load_model_likelihood(&no_path).err().map(|e| e.to_string());
+        assert!(err.is_some_and(|e| e.contains("--model")));
+        let bad_scale = ModelSpec {
+            window_scale: Some(0.0),
+            ..no_path.clone()
+        };
+        assert!(load_model_likelihood(&bad_scale).is_err());
+        Ok(())
+    }
+
+    #[cfg(feature = "cnn")]
+    #[test]
+    fn a_cnn_likelihood_tracks_deterministically_at_any_thread_count() -> Result<()> {
+        let (frames, _) = three_cars(8)?;
+        let model = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/fixtures/tiny_classifier.onnx"
+        );
+        let cfg = FilterTrackConfig::default();
+        let run_with = |threads: usize, stride: u32| -> Result<FilterTrackOutput> {
+            let spec = ModelSpec {
+                kind: ModelKind::Cnn,
+                path: Some(PathBuf::from(model)),
+                dense_stride_px: Some(stride),
+                window_scale: None,
+            };
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| Error::Invalid(e.to_string()))?;
+            pool.install(|| {
+                let detector = Detector::bootstrap(
+                    cfg.detector.clone(),
+                    frames.iter().cloned().map(Ok),
+                    Some(frames.len() as u32),
+                )?;
+                track_frames_with_model(
+                    FilterMethod::Phd,
+                    &cfg,
+                    detector,
+                    frames.iter().cloned().map(Ok),
+                    None,
+                    3,
+                    load_model_likelihood(&spec)?,
+                    &mut |_, _| {},
+                )
+            })
+        };
+        for stride in [0, 8] {
+            let one = run_with(1, stride)?;
+            let two = run_with(2, stride)?;
+            assert_eq!(one.points, two.points, "stride {stride}");
+            assert_eq!(one.counts.len(), frames.len());
+            assert!(one.counts.iter().all(|c| c.expected.is_finite()));
+        }
+        Ok(())
+    }
+
+    #[cfg(feature = "cnn")]
+    #[test]
+    #[ignore = "needs the SSDLite model (scripts/setup.sh --models) and ../shared/data/vtest.avi"]
+    fn phd_with_the_ssd_likelihood_counts_pedestrians_in_vtest() -> Result<()> {
+        let Some(model) = crate::cnn::ssd::default_model_path().filter(|p| p.is_file()) else {
+            eprintln!("note: SSD model absent; run scripts/setup.sh --models");
+            return Ok(());
+        };
+        let video = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/vtest.avi"
+        ));
+        if !video.is_file() {
+            eprintln!("note: {} absent; skipped", video.display());
+            return Ok(());
+        }
+        let spec = ModelSpec {
+            kind: ModelKind::Ssd,
+            path: Some(model),
+            ..Default::default()
+        };
+        let options = SourceOptions {
+            end: Some(40),
+            ..Default::default()
+        };
+        let out = track_source_with_model(
+            FilterMethod::Phd,
+            &FilterTrackConfig::default(),
+            video,
+            &options,
+            0,
+            load_model_likelihood(&spec)?,
+            &mut |_, _| {},
+        )?;
+        assert_eq!(out.counts.len(), 40);
+        // vtest shows several pedestrians from the first frame on.
+        let late: Vec<f64> = out.counts[20..].iter().map(|c| c.expected).collect();
+        let mean = late.iter().sum::<f64>() / late.len() as f64;
+        assert!(
+            mean > 1.0,
+            "mean expected count {mean:.2} over frames 21–40"
+        );
+        assert!(!out.points.is_empty());
         Ok(())
     }
 

@@ -12,13 +12,18 @@ use crate::error::{Error, Result};
 use crate::geometry::Point;
 use image::RgbImage;
 
-/// Scores on a regular grid: value `(c, r)` belongs to the window centred on
-/// `(origin.x + c·stride, origin.y + r·stride)` px.
+/// Scores on a regular grid: value `(c, r)` (column `c`, row `r`) belongs to the window
+/// centred on `(origin.x + c·stride, origin.y + r·stride)` px.
+///
+/// The one score-map type of the crate: [`GridScorer`], the CNN classifier's fully
+/// convolutional pass (`cnn::OnnxClassifier::score_map`) and the SSD detector's map
+/// (`cnn::SsdPersonDetector::score_map`) all produce it; [`DenseLikelihood`] answers
+/// particles from it by [`ScoreMap::sample`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScoreMap {
     /// Centre of grid cell `(0, 0)`, px.
     pub origin_px: Point,
-    /// Grid spacing, px.
+    /// Grid spacing, px (same along x and y).
     pub stride_px: f64,
     /// Number of columns.
     pub cols: usize,
@@ -47,23 +52,55 @@ impl ScoreMap {
         Ok(())
     }
 
+    /// The value of cell `(row, col)`; 0 outside the grid.
+    pub fn cell(&self, row: usize, col: usize) -> f64 {
+        if row < self.rows && col < self.cols {
+            self.values
+                .get(row * self.cols + col)
+                .copied()
+                .unwrap_or(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The image position of cell `(row, col)`, px.
+    pub fn cell_centre_px(&self, row: usize, col: usize) -> Point {
+        Point::new(
+            self.origin_px.x + col as f64 * self.stride_px,
+            self.origin_px.y + row as f64 * self.stride_px,
+        )
+    }
+
     /// The score at `p`, bilinear between the four nearest grid points; positions outside
-    /// the grid take the nearest edge value.
+    /// the grid take the nearest edge value. An empty map and NaN positions give 0.
     pub fn sample(&self, p: Point) -> f64 {
+        if self.cols == 0 || self.rows == 0 {
+            return 0.0;
+        }
         let fx = ((p.x - self.origin_px.x) / self.stride_px).clamp(0.0, (self.cols - 1) as f64);
         let fy = ((p.y - self.origin_px.y) / self.stride_px).clamp(0.0, (self.rows - 1) as f64);
-        // NaN positions clamp to NaN; map them to the grid origin.
-        let (fx, fy) = (
-            if fx.is_nan() { 0.0 } else { fx },
-            if fy.is_nan() { 0.0 } else { fy },
-        );
+        if !(fx.is_finite() && fy.is_finite()) {
+            return 0.0;
+        }
         let (c0, r0) = (fx.floor() as usize, fy.floor() as usize);
         let (c1, r1) = ((c0 + 1).min(self.cols - 1), (r0 + 1).min(self.rows - 1));
         let (tx, ty) = (fx - c0 as f64, fy - r0 as f64);
-        let v = |c: usize, r: usize| self.values[r * self.cols + c];
-        let top = v(c0, r0) * (1.0 - tx) + v(c1, r0) * tx;
-        let bottom = v(c0, r1) * (1.0 - tx) + v(c1, r1) * tx;
+        let top = self.cell(r0, c0) * (1.0 - tx) + self.cell(r0, c1) * tx;
+        let bottom = self.cell(r1, c0) * (1.0 - tx) + self.cell(r1, c1) * tx;
         top * (1.0 - ty) + bottom * ty
+    }
+
+    /// [`ScoreMap::sample`] at every position, into `out`.
+    ///
+    /// # Errors
+    /// When `out` and `positions_px` differ in length.
+    pub fn lookup(&self, positions_px: &[Point], out: &mut [f64]) -> Result<()> {
+        check_lengths(positions_px, out)?;
+        for (o, &p) in out.iter_mut().zip(positions_px) {
+            *o = self.sample(p);
+        }
+        Ok(())
     }
 }
 
@@ -164,10 +201,7 @@ impl Likelihood for DenseLikelihood {
                 ));
             }
         };
-        for (o, &p) in out.iter_mut().zip(positions_px) {
-            *o = map.sample(p);
-        }
-        Ok(())
+        map.lookup(positions_px, out)
     }
 
     fn begin_frame(&mut self, image: &RgbImage) -> Result<()> {
@@ -184,6 +218,48 @@ mod tests {
     use super::*;
     use crate::geometry::BBox;
     use image::Rgb;
+
+    fn small_map() -> ScoreMap {
+        ScoreMap {
+            origin_px: Point::new(10.0, 20.0),
+            stride_px: 4.0,
+            cols: 3,
+            rows: 2,
+            values: vec![0.0, 0.4, 0.8, 0.2, 0.6, 1.0],
+        }
+    }
+
+    #[test]
+    fn lookup_at_cell_centres_returns_cells() {
+        let m = small_map();
+        for i in 0..2 {
+            for j in 0..3 {
+                assert!((m.sample(m.cell_centre_px(i, j)) - m.cell(i, j)).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn lookup_between_cells_is_bilinear_and_clamped() -> Result<()> {
+        let m = small_map();
+        assert!((m.sample(Point::new(12.0, 22.0)) - 0.3).abs() < 1e-12);
+        assert!((m.sample(Point::new(-100.0, -100.0)) - 0.0).abs() < 1e-12);
+        assert!((m.sample(Point::new(1e6, 1e6)) - 1.0).abs() < 1e-12);
+        assert_eq!(m.sample(Point::new(f64::NAN, 21.0)), 0.0);
+        let mut out = [0.0; 2];
+        m.lookup(&[Point::new(14.0, 20.0), Point::new(18.0, 24.0)], &mut out)?;
+        assert!((out[0] - 0.4).abs() < 1e-12 && (out[1] - 1.0).abs() < 1e-12);
+        assert!(m.lookup(&[Point::new(14.0, 20.0)], &mut out).is_err());
+        let empty = ScoreMap {
+            cols: 0,
+            rows: 0,
+            values: Vec::new(),
+            ..small_map()
+        };
+        assert_eq!(empty.sample(Point::new(1.0, 1.0)), 0.0);
+        assert!(empty.validate().is_err() && m.validate().is_ok());
+        Ok(())
+    }
 
     #[test]
     fn bilinear_lookup_is_exact_for_a_linear_scorer() -> Result<()> {

@@ -61,7 +61,7 @@ where
 }
 
 /// Returns an error unless `positions` and `out` have the same length.
-pub(crate) fn check_lengths(positions: &[Point], out: &[f64]) -> Result<()> {
+pub fn check_lengths(positions: &[Point], out: &[f64]) -> Result<()> {
     if positions.len() == out.len() {
         Ok(())
     } else {
