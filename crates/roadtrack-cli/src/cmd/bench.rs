@@ -10,7 +10,7 @@ use std::path::PathBuf;
 /// Measure the throughput of each stage and print it with the machine's CPU and cores.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack bench --video ../shared/data/vtest.avi --json > bench.json"
+    after_help = "Example:\n  roadtrack bench --video ../shared/data/vtest.avi --json > bench.json\n  RAYON_NUM_THREADS=2 roadtrack bench --stages cnn"
 )]
 pub struct Args {
     /// Real video for the decode and detect stages (skipped when absent).
@@ -22,7 +22,9 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
-    /// Stages to run (default all): decode, detect, simulate, relaxation, mrf, filters.
+    /// Stages to run (default all): decode, detect, simulate, relaxation, mrf, filters, cnn
+    /// (network scoring per window and dense, and a PHD tracking step with a CNN
+    /// likelihood per stage; the SSD rows when scripts/setup.sh --models has run).
     #[arg(long, value_delimiter = ',')]
     pub stages: Vec<String>,
     /// Largest vehicle count of the relaxation scale stage (50, 1 000, 10 000, 100 000).
@@ -147,6 +149,37 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 "frames",
                 r.total_ms * r.frames as f64 / 1000.0,
             ));
+        }
+    }
+    if want("cnn") {
+        bar.set_message("cnn");
+        let ssd = roadtrack::cnn::ssd::default_model_path().filter(|p| p.is_file());
+        if ssd.is_none() {
+            ui.info("note: SSD model absent (scripts/setup.sh --models); skipping the SSD rows");
+        }
+        results.extend(roadtrack::cnn::bench::bench_cnn_stages(ssd.as_deref())?);
+        let cfg = roadtrack::filter::bench::FilterBenchConfig::default();
+        for r in roadtrack::cnn::bench::bench_phd_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})? {
+            let stages = [
+                ("predict", r.predict_ms),
+                ("likelihood", r.likelihood_ms),
+                ("update", r.update_ms),
+                ("labels", r.labels_ms),
+                ("resample", r.resample_ms),
+                ("total", r.total_ms),
+            ];
+            for (stage, ms) in stages {
+                results.push(StageResult::new(
+                    &format!("{} {stage}", r.name),
+                    &format!(
+                        "{}×{}, {} targets × {} ({} particles)",
+                        cfg.width, cfg.height, cfg.targets, cfg.particles_per_object, r.particles
+                    ),
+                    r.frames,
+                    "frames",
+                    ms * r.frames as f64 / 1000.0,
+                ));
+            }
         }
     }
     bar.finish_and_clear();

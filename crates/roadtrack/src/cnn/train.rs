@@ -181,7 +181,14 @@ impl Patches {
         let n = 3 * self.height * self.width;
         &self.data[i * n..(i + 1) * n]
     }
-    fn push_stretched(&mut self, image: &RgbImage, rect: BBox, label: u8, prep: &Preprocessing) {
+    /// Appends the `rect` of `image` stretched to the patch size, preprocessed, as `label`.
+    pub(crate) fn push_stretched(
+        &mut self,
+        image: &RgbImage,
+        rect: BBox,
+        label: u8,
+        prep: &Preprocessing,
+    ) {
         let n = 3 * self.height * self.width;
         let start = self.data.len();
         self.data.resize(start + n, 0.0);

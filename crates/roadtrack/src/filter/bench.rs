@@ -152,6 +152,43 @@ pub fn bench_scene(cfg: &FilterBenchConfig) -> (Vec<Frame>, Vec<Detection>) {
     (frames, detections)
 }
 
+/// The PHD filter with `likelihood` on `frames`, started from `detections` (ρ =
+/// `cfg.particles_per_object`), timed per stage.
+fn run_phd(
+    cfg: &FilterBenchConfig,
+    frames: &[Frame],
+    detections: &[Detection],
+    name: &str,
+    likelihood: Box<dyn Likelihood>,
+) -> Result<StageReport> {
+    let phd_cfg = PhdConfig {
+        particles_per_object: cfg.particles_per_object,
+        ..PhdConfig::default()
+    };
+    let mut t = PhdTracker::new(phd_cfg, likelihood, cfg.seed)?;
+    t.start_from_detections(detections);
+    for f in frames {
+        t.step(f)?;
+    }
+    let n = t.filter().map_or(0, |f| f.particles().len());
+    Ok(StageReport::new(name, &t.stage_times(), n))
+}
+
+/// Runs the PHD filter with `likelihood` on the synthetic scene ([`bench_scene`]) and
+/// reports per-stage times (a whole tracking step: predict, likelihood — for dense
+/// likelihoods the per-frame score map plus lookups — update, labels, resample).
+///
+/// # Errors
+/// When the tracker or the likelihood fails.
+pub fn bench_phd_with(
+    cfg: &FilterBenchConfig,
+    name: &str,
+    likelihood: Box<dyn Likelihood>,
+) -> Result<StageReport> {
+    let (frames, detections) = bench_scene(cfg);
+    run_phd(cfg, &frames, &detections, name, likelihood)
+}
+
 /// Runs the PHD filter (colour per particle, colour dense) and the particle filter on the
 /// synthetic scene and reports per-stage times. `progress` gets `(runs done, 3)`.
 ///
@@ -178,10 +215,6 @@ pub fn bench_filters(
         .map(|d| BBox::from_centre(d.pos_px, 20.0, 20.0))
         .collect();
     let colour = ColourLikelihood::from_boxes(colour_cfg, &first.image, &boxes)?;
-    let phd_cfg = PhdConfig {
-        particles_per_object: cfg.particles_per_object,
-        ..PhdConfig::default()
-    };
     let mut reports = Vec::new();
     let likelihoods: Vec<(&str, Box<dyn Likelihood>)> = vec![
         ("phd_colour", Box::new(colour.clone())),
@@ -194,13 +227,7 @@ pub fn bench_filters(
         ),
     ];
     for (name, lik) in likelihoods {
-        let mut t = PhdTracker::new(phd_cfg.clone(), lik, cfg.seed)?;
-        t.start_from_detections(&detections);
-        for f in &frames {
-            t.step(f)?;
-        }
-        let n = t.filter().map_or(0, |f| f.particles().len());
-        reports.push(StageReport::new(name, &t.stage_times(), n));
+        reports.push(run_phd(cfg, &frames, &detections, name, lik)?);
         progress(reports.len() as u64, 3);
     }
     let pf_cfg = ParticleFilterConfig {
