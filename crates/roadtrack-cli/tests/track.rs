@@ -132,12 +132,14 @@ fn demo_reports_every_method_with_pictures() {
     }
 }
 
+#[cfg(feature = "cnn")]
 const TINY_CNN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../roadtrack/tests/fixtures/tiny_classifier.onnx"
 );
 
 /// Tracks in `path` are valid: readable, inside `1..=frames`, finite positive boxes.
+#[cfg(feature = "cnn")]
 fn check_tracks(path: &Path, frames: u32) {
     let tracks = roadtrack::io::mot::read_tracks(path).expect("tracks");
     assert!(!tracks.is_empty(), "no tracks in {}", path.display());
@@ -148,6 +150,7 @@ fn check_tracks(path: &Path, frames: u32) {
     }
 }
 
+#[cfg(feature = "cnn")]
 #[test]
 fn phd_with_the_tiny_cnn_writes_valid_tracks_and_bad_models_exit_1() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -202,6 +205,7 @@ fn phd_with_the_tiny_cnn_writes_valid_tracks_and_bad_models_exit_1() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("tiny_classifier.onnx"));
 }
 
+#[cfg(feature = "cnn")]
 #[test]
 fn a_model_trained_by_train_is_loaded_by_the_tracker_densely_and_per_window() {
     // Train on one seed's sequence, track another seed's: what docs/EXPERIMENTS.md does

@@ -1,5 +1,6 @@
 //! End-to-end tests of `roadtrack train`: the real binary, patch folders and a tiny
 //! MOTChallenge sequence; the written model is loaded back through the tracker's loader.
+#![cfg(feature = "cnn")]
 
 use std::path::Path;
 use std::process::{Command, Output};

@@ -151,6 +151,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             ));
         }
     }
+    #[cfg(not(feature = "cnn"))]
+    if want("cnn") {
+        ui.info("note: built without the `cnn` feature; skipping the cnn stage");
+    }
+    #[cfg(feature = "cnn")]
     if want("cnn") {
         bar.set_message("cnn");
         let ssd = roadtrack::cnn::ssd::default_model_path().filter(|p| p.is_file());

@@ -2,9 +2,8 @@
 
 use crate::common::Ui;
 use anyhow::{Context, Result, bail};
-use roadtrack::cnn::export::write_onnx;
 use roadtrack::cnn::train::{
-    Preset, TrainConfig, patches_from_folders, patches_from_sequence, train, training_preprocessing,
+    Preset, TrainConfig, patches_from_folders, patches_from_sequence, train,
 };
 use std::path::PathBuf;
 
@@ -83,6 +82,10 @@ fn parse_size(s: &str) -> Result<(usize, usize)> {
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    if !cfg!(feature = "cnn") {
+        // Fail before training, not after it.
+        bail!(NO_CNN);
+    }
     let preset = match args.preset {
         PresetArg::Person => Preset::Person,
         PresetArg::Vehicle => Preset::Vehicle,
@@ -153,13 +156,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             e.epoch, e.train_loss, e.test_accuracy
         ));
     }
-    write_onnx(
-        &args.output,
-        &net,
-        &training_preprocessing(),
-        patches.window_scale,
-    )
-    .with_context(|| format!("writing {}", args.output.display()))?;
+    write_model(&args.output, &net, patches.window_scale)
+        .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&report)? + "\n";
         roadtrack::io::atomic::write_bytes_atomic(path, json.as_bytes())?;
@@ -172,4 +170,36 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         args.output.display()
     ));
     Ok(())
+}
+
+/// The error of a build without the `cnn` feature.
+const NO_CNN: &str = "roadtrack was built without the `cnn` feature, which writes ONNX models \
+                      (cargo build -p roadtrack-cli --features cnn)";
+
+/// Writes the trained network as ONNX.
+#[cfg(feature = "cnn")]
+fn write_model(
+    path: &std::path::Path,
+    net: &roadtrack::cnn::net::TinyCnn,
+    window_scale: Option<f64>,
+) -> Result<()> {
+    roadtrack::cnn::export::write_onnx(
+        path,
+        net,
+        &roadtrack::cnn::train::training_preprocessing(),
+        window_scale,
+    )?;
+    Ok(())
+}
+
+/// Without the `cnn` feature there is no ONNX writer.
+#[cfg(not(feature = "cnn"))]
+fn write_model(
+    _path: &std::path::Path,
+    _net: &roadtrack::cnn::net::TinyCnn,
+    _window_scale: Option<f64>,
+) -> Result<()> {
+    bail!(
+        "roadtrack was built without the `cnn` feature, which writes ONNX models (cargo build -p roadtrack-cli --features cnn)"
+    )
 }

@@ -213,8 +213,9 @@ pub fn load_model_likelihood(spec: &ModelSpec) -> Result<Option<Box<dyn Likeliho
         }
         #[cfg(not(feature = "cnn"))]
         kind @ (ModelKind::Cnn | ModelKind::Ssd) => Err(Error::Invalid(format!(
-            "the {kind:?} likelihood needs roadtrack built with the `cnn` feature \
-             (cargo build --features cnn)"
+            "the {} likelihood needs roadtrack built with the `cnn` feature \
+             (cargo build -p roadtrack-cli --features cnn)",
+            if kind == ModelKind::Cnn { "cnn" } else { "ssd" }
         ))),
     }
 }
