@@ -6,7 +6,8 @@
 #     particle window and dense) on seeds 1..SEEDS; `roadtrack evaluate` for
 #     HOTA/MOTA/IDF1, RMSE (px, m) and the detection table (track centres, 25 px gate);
 #  2. vtest.avi: PHD with the colour likelihood vs the SSDLite pedestrian detector (dense),
-#     tracks reported per frame, and overlays of frames 50/150/300/450 via `roadtrack render`.
+#     tracks reported per frame, Σw per frame (example filter_experiments with
+#     FX_LIKELIHOOD=ssd; plot docs/img/phd_ssd_vtest_count.png), and overlays of frames 50/150/300/450 via `roadtrack render`.
 # Usage: scripts/cnn_experiments.sh [OUT_DIR] [FRAMES] [SEEDS]   (defaults /tmp/cnnx 100 2)
 # Needs: cargo, ffmpeg + ../shared/data/vtest.avi and the SSD model (scripts/setup.sh
 # --models) for part 2 (skipped when absent). Dev profile; a few minutes on 2 cores.
@@ -112,6 +113,11 @@ for lik, (c, ids) in rows.items():
         seg = per[a:a + 100]
         print(f"  frames {a+1}-{a+len(seg)}: mean {sum(seg)/len(seg):.2f}")
 PY
+  # Σw per frame and its plot (the library run behind the same tracker).
+  cargo build -q -p roadtrack --example filter_experiments
+  fx="${CARGO_TARGET_DIR:-$here/target}/debug/examples/filter_experiments"
+  FX_LIKELIHOOD=ssd "$fx" vtest "$video" "$out/fx_ssd"
+  cp "$out/fx_ssd/phd_vtest_count.png" docs/img/phd_ssd_vtest_count.png
   "$rt" render "$video" --tracks "$out/vtest_ssd.txt" -q -o "$out/render_ssd"
   for f in 50 150 300 450; do cp "$out/render_ssd/$(printf %06d $f).png" "$out/vtest_ssd_$f.png"; done
   ffmpeg -v error -y -i "$out/render_ssd/000150.png" -q:v 4 "$here/docs/img/phd_ssd_vtest_overlay.jpg"

@@ -11,6 +11,8 @@
 //! `sim` writes `OUT_DIR/runs.json` (every run) and `OUT_DIR/tables.md` (means over seeds);
 //! `vtest` writes `OUT_DIR/counts.csv`, `OUT_DIR/phd_vtest_count.png` and overlays
 //! `OUT_DIR/overlay_NNNNNN.png`.
+//! With `FX_LIKELIHOOD=ssd`, `vtest` uses the SSDLite pedestrian detector (dense, after
+//! `scripts/setup.sh --models`) instead of the colour likelihood.
 
 use roadtrack::calibration::Calibration;
 use roadtrack::class::ObjectClass;
@@ -463,13 +465,26 @@ fn vtest(video: &Path, out: &Path, frames: Option<u32>) -> Res<()> {
     if std::env::var("FX_KIND").is_ok_and(|k| k == "colour_foreground") {
         cfg.likelihood.kind = LikelihoodKind::ColourForeground;
     }
+    // FX_LIKELIHOOD=ssd: the SSDLite pedestrian detector (dense) instead of the colour
+    // histogram (docs/EXPERIMENTS.md "CNN likelihoods in the trackers").
+    let ssd = std::env::var("FX_LIKELIHOOD").is_ok_and(|k| k == "ssd");
+    let model = if ssd {
+        use roadtrack::filter::track::{ModelKind, ModelSpec, load_model_likelihood};
+        load_model_likelihood(&ModelSpec {
+            kind: ModelKind::Ssd,
+            ..Default::default()
+        })?
+    } else {
+        None
+    };
     let t0 = Instant::now();
-    let run = roadtrack::filter::track::track_source(
+    let run = roadtrack::filter::track::track_source_with_model(
         FilterMethod::Phd,
         &cfg,
         video,
         &options,
         1,
+        model,
         &mut |_, _| {},
     )?;
     let wall = t0.elapsed().as_secs_f64();
@@ -532,7 +547,11 @@ fn vtest(video: &Path, out: &Path, frames: Option<u32>) -> Res<()> {
     ];
     line_chart(
         &series,
-        "vtest.avi: labelled SMC-PHD filter, colour likelihood",
+        if ssd {
+            "vtest.avi: labelled SMC-PHD filter, SSDLite likelihood"
+        } else {
+            "vtest.avi: labelled SMC-PHD filter, colour likelihood"
+        },
         "frame",
         "objects",
         &out.join("phd_vtest_count.png"),
