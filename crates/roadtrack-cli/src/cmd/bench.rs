@@ -201,13 +201,27 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             machine.rayon_threads,
             build_profile()
         );
+        // Columns as wide as their longest entry (stage names run from "decode" to
+        // "PHD, CNN dense stride 8 likelihood").
+        let ws = results
+            .iter()
+            .map(|r| r.stage.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max(5);
+        let wi = results
+            .iter()
+            .map(|r| r.input.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max(5);
         println!(
-            "{:<11} {:<44} {:>8} {:>9} {:>12}",
+            "{:<ws$} {:<wi$} {:>8} {:>9} {:>12}",
             "stage", "input", "items", "seconds", "per second"
         );
         for r in &results {
             println!(
-                "{:<11} {:<44} {:>8} {:>9.3} {:>8.1} {}",
+                "{:<ws$} {:<wi$} {:>8} {:>9.3} {:>8.1} {}",
                 r.stage, r.input, r.items, r.seconds, r.per_second, r.unit
             );
         }
