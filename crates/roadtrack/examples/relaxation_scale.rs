@@ -22,7 +22,7 @@ fn main() -> roadtrack::Result<()> {
     };
     let cfg = RelaxationConfig::default();
     println!(
-        "vehicles,detections1,detections2,labels,support_entries,build_s,solve_s,total_s,iterations,converged,heap_mib,peak_rss_mib,correct_rate,nn_rate,assignment_rate,threads"
+        "vehicles,detections1,detections2,labels,support_entries,build_s,solve_s,total_s,build_cpu_s,solve_cpu_s,iterations,converged,heap_mib,peak_rss_mib,correct_rate,nn_rate,assignment_rate,threads"
     );
     for n in sizes {
         let r = bench_scale(n, &cfg, 1)?;
@@ -48,7 +48,7 @@ fn main() -> roadtrack::Result<()> {
             String::new()
         };
         println!(
-            "{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{:.1},{},{:.4},{:.4},{},{}",
+            "{},{},{},{},{},{:.4},{:.4},{:.4},{},{},{},{},{:.1},{},{:.4},{:.4},{},{}",
             r.n_vehicles,
             r.n_detections.0,
             r.n_detections.1,
@@ -57,6 +57,8 @@ fn main() -> roadtrack::Result<()> {
             r.build_s,
             r.solve_s,
             r.build_s + r.solve_s,
+            r.build_cpu_s.map_or(String::new(), |c| format!("{c:.2}")),
+            r.solve_cpu_s.map_or(String::new(), |c| format!("{c:.2}")),
             r.iterations,
             r.converged,
             r.heap_bytes as f64 / (1 << 20) as f64,

@@ -101,10 +101,21 @@ impl Matching {
 /// symmetric scenes (identical vehicles at one place; an isolated pair under the uniform
 /// start with `A = 1`, which stays at (½, ½) for ever and is matched).
 pub fn argmax_row(targets: &[u32], real: &[f64], none: f64) -> (Option<usize>, f64) {
+    argmax_of(
+        targets
+            .iter()
+            .map(|&k| k as usize)
+            .zip(real.iter().copied()),
+        none,
+    )
+}
+
+/// [`argmax_row`] over `(partner index, probability)` pairs in any order.
+fn argmax_of(labels: impl Iterator<Item = (usize, f64)>, none: f64) -> (Option<usize>, f64) {
     let mut best: Option<(usize, f64)> = None;
-    for (&k, &p) in targets.iter().zip(real) {
-        if best.is_none_or(|(_, b)| p > b) {
-            best = Some((k as usize, p));
+    for (k, p) in labels {
+        if best.is_none_or(|(bk, b)| p > b || (p == b && k < bk)) {
+            best = Some((k, p));
         }
     }
     match best {
@@ -113,37 +124,56 @@ pub fn argmax_row(targets: &[u32], real: &[f64], none: f64) -> (Option<usize>, f
     }
 }
 
-fn argmax_all(start: &[u32], target: &[u32], p: &Probabilities) -> (Vec<Option<usize>>, Vec<f64>) {
-    (0..p.none.len())
-        .map(|i| {
-            let r = start[i] as usize..start[i + 1] as usize;
-            argmax_row(&target[r.clone()], &p.real[r], p.none[i])
-        })
-        .unzip()
+/// The argmax of every row of `p` (rows `start`, partners `target`), in input order:
+/// internal row `i` is input vehicle `own[i]`, internal partner `k` is input `other[k]`.
+fn argmax_all(
+    start: &[u32],
+    target: &[u32],
+    p: &Probabilities,
+    own: &[u32],
+    other: &[u32],
+) -> (Vec<Option<usize>>, Vec<f64>) {
+    let m = p.none.len();
+    let mut partner = vec![None; m];
+    let mut prob = vec![0.0; m];
+    for i in 0..m {
+        let r = start[i] as usize..start[i + 1] as usize;
+        let labels = target[r.clone()]
+            .iter()
+            .map(|&k| other[k as usize] as usize)
+            .zip(p.real[r].iter().copied());
+        let (k, v) = argmax_of(labels, p.none[i]);
+        partner[own[i] as usize] = k;
+        prob[own[i] as usize] = v;
+    }
+    (partner, prob)
 }
 
-/// One-to-one pairs from the forward probabilities (see [`DecisionRule::OneToOne`]).
-/// Choice: ties in probability are taken by lower frame-1, then frame-2 index.
+/// One-to-one pairs from the forward probabilities (see [`DecisionRule::OneToOne`]), in
+/// input order (`own`, `other` as in [`argmax_all`]).
+/// Choice: ties in probability are taken by lower frame-1, then frame-2 index (input order).
 fn one_to_one(
     start: &[u32],
     target: &[u32],
     p: &Probabilities,
-    n2: usize,
+    own: &[u32],
+    other: &[u32],
 ) -> (Vec<Option<usize>>, Vec<f64>) {
     let m = p.none.len();
     let mut candidates: Vec<(f64, u32, u32)> = Vec::new();
+    let mut prob = vec![0.0; m];
     for i in 0..m {
+        prob[own[i] as usize] = p.none[i];
         let r = start[i] as usize..start[i + 1] as usize;
         for (&v, &k) in p.real[r.clone()].iter().zip(&target[r]) {
             if v >= p.none[i] {
-                candidates.push((v, i as u32, k));
+                candidates.push((v, own[i], other[k as usize]));
             }
         }
     }
     candidates.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     let mut partner = vec![None; m];
-    let mut prob = p.none.clone();
-    let mut taken = vec![false; n2];
+    let mut taken = vec![false; other.len()];
     for (v, i, k) in candidates {
         let (i, k) = (i as usize, k as usize);
         if partner[i].is_none() && !taken[k] {
@@ -158,13 +188,14 @@ fn one_to_one(
 /// The decision on a solved problem.
 pub(crate) fn decide(problem: &RelaxationProblem, sol: &Solution, rule: DecisionRule) -> Matching {
     let g = &problem.graph;
+    let (o1, o2) = (&problem.order1[..], &problem.order2[..]);
     let (partner, probability) = match rule {
-        DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p),
-        DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, g.n),
+        DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+        DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
     };
     let (backward_partner, backward_probability) = match &sol.q {
         Some(q) => {
-            let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q);
+            let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q, o2, o1);
             (Some(a), Some(b))
         }
         None => (None, None),
@@ -215,9 +246,10 @@ mod tests {
             real: vec![0.7, 0.6, 0.3],
             none: vec![0.1, 0.1],
         };
-        let (a, _) = argmax_all(&start, &target, &p);
+        let id = [0, 1];
+        let (a, _) = argmax_all(&start, &target, &p, &id, &id);
         assert_eq!(a, vec![Some(0), Some(0)]);
-        let (o, pr) = one_to_one(&start, &target, &p, 2);
+        let (o, pr) = one_to_one(&start, &target, &p, &id, &id);
         assert_eq!(o, vec![Some(0), Some(1)]);
         assert_eq!(pr, vec![0.7, 0.3]);
     }

@@ -46,6 +46,11 @@ impl PointGrid {
         Self { cell, entries }
     }
 
+    /// The point indices in grid order: by cell row, cell column, then index.
+    pub fn order(&self) -> Vec<u32> {
+        self.entries.iter().map(|e| e.1).collect()
+    }
+
     /// Calls `f` with the index of every point whose cell meets the rectangle
     /// `[x0, x1] × [y0, y1]` (a superset of the points inside it; callers test exactly).
     /// Order: by row, column, then index.

@@ -212,6 +212,10 @@ pub struct ScaleReport {
     pub build_s: f64,
     /// Time to iterate and decide, s.
     pub solve_s: f64,
+    /// CPU time of the process (all threads) while building, s, when known (Linux).
+    pub build_cpu_s: Option<f64>,
+    /// CPU time of the process (all threads) while iterating and deciding, s, when known.
+    pub solve_cpu_s: Option<f64>,
     /// Iterations run.
     pub iterations: u32,
     /// Whether the iterations met `epsilon`.
@@ -233,13 +237,17 @@ pub struct ScaleReport {
 /// From [`RelaxationProblem::new`].
 pub fn bench_scale(n_vehicles: usize, cfg: &RelaxationConfig, seed: u64) -> Result<ScaleReport> {
     let (f1, f2, truth) = generate_road_network_pair(n_vehicles, &NetworkConfig::default(), seed)?;
+    let cpu0 = process_cpu_s();
     let t0 = Instant::now();
     let problem = RelaxationProblem::new(&f1, &f2, cfg)?;
     let build_s = t0.elapsed().as_secs_f64();
+    let cpu1 = process_cpu_s();
     let t1 = Instant::now();
     let sol = problem.solve(&cfg.weights(), cfg.epsilon, cfg.max_iterations);
     let m = problem.decide(&sol, cfg.decision);
     let solve_s = t1.elapsed().as_secs_f64();
+    let cpu2 = process_cpu_s();
+    let diff = |a: Option<f64>, b: Option<f64>| Some(b? - a?);
     let correct = truth
         .iter()
         .zip(&m.partner)
@@ -252,6 +260,8 @@ pub fn bench_scale(n_vehicles: usize, cfg: &RelaxationConfig, seed: u64) -> Resu
         n_support_entries: problem.n_support_entries(),
         build_s,
         solve_s,
+        build_cpu_s: diff(cpu0, cpu1),
+        solve_cpu_s: diff(cpu1, cpu2),
         iterations: sol.iterations,
         converged: sol.converged,
         heap_bytes: problem.heap_bytes(),
@@ -263,6 +273,18 @@ pub fn bench_scale(n_vehicles: usize, cfg: &RelaxationConfig, seed: u64) -> Resu
         },
         threads: rayon::current_num_threads(),
     })
+}
+
+/// CPU time (user + system) of this process so far, all threads, s (Linux
+/// `/proc/self/stat`, in clock ticks of 10 ms).
+pub fn process_cpu_s() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which is in parentheses and may hold spaces):
+    // state is field 3, utime 14, stime 15.
+    let rest = &s[s.rfind(')')? + 1..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i - 3)?.parse::<u64>().ok();
+    Some((ticks(14)? + ticks(15)?) as f64 / 100.0)
 }
 
 /// Peak resident set size of this process (Linux `/proc/self/status` `VmHWM`), bytes.

@@ -11,6 +11,7 @@
 //! result does not depend on the order — or the number of threads — in which they run.
 
 use super::decision::{self, DecisionRule, Matching};
+use super::grid::PointGrid;
 use super::initial::initial_probabilities;
 use super::labels::{LabelGraph, PAR_BLOCK};
 use super::support::SupportLists;
@@ -58,14 +59,26 @@ pub struct Solution {
 
 /// Everything about a two-frame problem that does not depend on `A, B, C`: labels,
 /// support lists and initial probabilities. Built once, solved for any weights.
+///
+/// Layout: the vehicles of each frame are renumbered in grid order (cells of side `R`,
+/// row by row, then input order), so that a vehicle's neighbours, their labels and the
+/// twins of its labels sit close together in memory: the support sums and the update
+/// then read mostly from cache. [`Self::graph`] and every [`Solution`] use this internal
+/// numbering; internal vehicle `i` of frame 1 is input detection `order1[i]`, and
+/// [`Self::decide`] maps the decision back to input order. The method itself does not
+/// depend on the numbering; only the order of floating-point additions does.
 #[derive(Debug, Clone)]
 pub struct RelaxationProblem {
-    /// The labels.
+    /// The labels, between vehicles in internal order.
     pub graph: LabelGraph,
     /// Ids of the frame-1 detections, in input order.
     pub ids1: Vec<u64>,
     /// Ids of the frame-2 detections, in input order.
     pub ids2: Vec<u64>,
+    /// Input index of each internal frame-1 vehicle.
+    pub order1: Vec<u32>,
+    /// Input index of each internal frame-2 vehicle.
+    pub order2: Vec<u32>,
     fwd_support: SupportLists,
     bwd_support: Option<SupportLists>,
     initial_p: Probabilities,
@@ -91,6 +104,15 @@ impl RelaxationProblem {
         let colour = cfg.variant.colour_start();
         validate_detections(frame1, 1, colour, cfg.variant)?;
         validate_detections(frame2, 2, colour, cfg.variant)?;
+        // Choice: the internal order (see the type's doc) uses grid cells of side R, the
+        // neighbourhood of eq. 16.
+        let cell = cfg.neighbour_radius_px.max(1.0);
+        let order = |f: &[Detection]| PointGrid::new(f.iter().map(|d| d.pos_px), cell).order();
+        let (order1, order2) = (order(frame1), order(frame2));
+        let ids1: Vec<u64> = frame1.iter().map(|d| d.id).collect();
+        let ids2: Vec<u64> = frame2.iter().map(|d| d.id).collect();
+        let frame1: Vec<&Detection> = order1.iter().map(|&i| &frame1[i as usize]).collect();
+        let frame2: Vec<&Detection> = order2.iter().map(|&i| &frame2[i as usize]).collect();
         let p: Vec<Point> = frame1.iter().map(|d| d.pos_px).collect();
         let q: Vec<Point> = frame2.iter().map(|d| d.pos_px).collect();
         let graph = LabelGraph::new(&p, &q, cfg.gate_half_width_px)?;
@@ -109,11 +131,11 @@ impl RelaxationProblem {
             None
         };
         // Validated above: every detection has a colour when the variant needs one.
-        let colours = |f: &[Detection]| -> Vec<[f64; 3]> {
+        let colours = |f: &[&Detection]| -> Vec<[f64; 3]> {
             f.iter().map(|d| d.colour_rgb.unwrap_or([0.0; 3])).collect()
         };
         let (c1, c2) = if colour {
-            (colours(frame1), colours(frame2))
+            (colours(&frame1), colours(&frame2))
         } else {
             (Vec::new(), Vec::new())
         };
@@ -131,8 +153,10 @@ impl RelaxationProblem {
         });
         Ok(Self {
             graph,
-            ids1: frame1.iter().map(|d| d.id).collect(),
-            ids2: frame2.iter().map(|d| d.id).collect(),
+            ids1,
+            ids2,
+            order1,
+            order2,
             fwd_support,
             bwd_support,
             initial_p,
@@ -254,8 +278,10 @@ impl RelaxationProblem {
     /// allocates (two probability sets and two support buffers per direction).
     pub fn heap_bytes(&self) -> usize {
         let probs = |p: &Probabilities| 8 * (p.real.capacity() + p.none.capacity());
+        let orders = 4 * (self.order1.capacity() + self.order2.capacity());
         let dirs = if self.bidirectional() { 2 } else { 1 };
         self.graph.heap_bytes()
+            + orders
             + self.fwd_support.heap_bytes()
             + self.bwd_support.as_ref().map_or(0, |s| s.heap_bytes())
             + probs(&self.initial_p)
