@@ -14,7 +14,7 @@
 //! | --- | --- | --- |
 //! | [`labels`] | candidate labels in the gate, forward and backward, as CSR arrays | 2–6, 12 |
 //! | [`initial`] | colour or uniform start | 7–11 |
-//! | [`support`] | neighbour-support lists (spatial grid + displacement buckets) and sums | 13–16 |
+//! | [`support`] | neighbour-support lists (spatial grid + direct label comparison) and sums | 13–16 |
 //! | [`update`] | one double-buffered iteration and the stop rule | 17–20 |
 //! | [`decision`] | argmax and the optional one-to-one decision → [`Matching`] | — |
 //! | [`tracker`] | [`RelaxationTracker`]: frames chained into tracks | — |
