@@ -29,8 +29,8 @@ pub struct Context<'a> {
     pub prev_map: &'a ObjectMap,
     /// Parameters (weights, variant, temperature, stop rule).
     pub config: &'a MrfConfig,
-    /// Representative vector of each object (legacy variant: the most frequent vector over
-    /// its `t − 1` blocks).
+    /// Representative vector of each object: the most frequent vector over its `t − 1`
+    /// blocks (legacy: the vector of `M` and `D`; improved: the centre of the proposals).
     pub representative: &'a BTreeMap<ObjectId, Vector>,
     /// Run seed.
     pub seed: u64,
@@ -58,14 +58,28 @@ pub fn temperature(config: &MrfConfig, iteration: u32) -> f64 {
 }
 
 /// The vectors the sampler may give a site together with candidate id `candidate`
-/// (improved variant).
+/// (improved variant). `representative` is the candidate object's representative vector
+/// (most frequent block-matching vector over its `t − 1` blocks); only vectors within
+/// `tolerance_px` of it (per axis) are proposed, and it is always proposed itself.
 // Choice: the vector belongs to the candidate: D and M of candidate O_m use "the local
 // vector of the O_m block it came from" (§3.2), so each candidate proposes its own vectors —
-// its block-matching vector, the current vectors of the 8 neighbours that carry the same id,
-// and, when the site currently carries this id, its current vector and that vector ±1 px
-// along each axis — deduplicated and kept within the search window. Not all 49 × 49 vectors
-// (METHODS.md §2 suggests this set as sound and far cheaper); sharing one set between ids
-// would let every id borrow the best-matching vector and make D blind to the id.
+// its object's representative vector, its block-matching (local) vector, the current
+// vectors of the 8 neighbours that carry the same id, and, when the site currently carries
+// this id, its current vector and that vector ±1 px along each axis — deduplicated and kept
+// within the search window. Not all 49 × 49 vectors (METHODS.md §2 suggests this set as
+// sound and far cheaper); sharing one set between ids would let every id borrow the
+// best-matching vector and make D blind to the id.
+// Choice (tolerance): every proposal of O_m must lie within `local_vector_tolerance_px` of
+// O_m's representative vector. Without this bound, a wrongly labelled edge block's local
+// vector (and its neighbours' and ±1 px steps) follows the texture the block actually shows
+// — the intruder's — so the wrong id explains that texture as well as the right one, D
+// cannot correct the id, and M and N keep the status quo (measured: the side-by-side group
+// lost a ≥ 10-block object in 14 of 46 object-frames; legacy, whose single representative
+// vector keeps D discriminative, lost none). With the bound, a local vector may still differ
+// from its object's motion (non-rigid motion, perspective) by the tolerance, but an object
+// can no longer take another object's motion. Default 0 (each object's blocks are evaluated
+// with its representative motion; the f term still weighs it against the neighbours');
+// 48 (twice the window) switches the bound off.
 pub fn proposals(
     site: &Site,
     candidate: &Candidate,
@@ -73,11 +87,20 @@ pub fn proposals(
     ids: &[ObjectId],
     vectors: &[Option<Vector>],
     radius_px: u32,
+    representative: Option<Vector>,
+    tolerance_px: u32,
 ) -> Vec<Vector> {
     let mut out: Vec<Vector> = Vec::with_capacity(16);
     let r = radius_px as i16;
+    let tol = i32::from(tolerance_px.min(u32::from(u16::MAX) / 2) as u16);
+    let near = |v: Vector| {
+        representative.is_none_or(|c| {
+            (i32::from(v[0]) - i32::from(c[0])).abs() <= tol
+                && (i32::from(v[1]) - i32::from(c[1])).abs() <= tol
+        })
+    };
     let mut push = |v: Vector| {
-        if v[0].abs() <= r && v[1].abs() <= r && !out.contains(&v) {
+        if v[0].abs() <= r && v[1].abs() <= r && near(v) && !out.contains(&v) {
             out.push(v);
         }
     };
@@ -85,6 +108,9 @@ pub fn proposals(
         .then_some(vectors[site.block])
         .flatten();
     if let Some(v) = current {
+        push(v);
+    }
+    if let Some(v) = representative {
         push(v);
     }
     push(candidate.vector);
@@ -97,6 +123,11 @@ pub fn proposals(
         for d in [[1, 0], [-1, 0], [0, 1], [0, -1]] {
             push([v[0] + d[0], v[1] + d[1]]);
         }
+    }
+    if out.is_empty() {
+        // The representative lies outside the window (cannot happen for block-matching
+        // vectors): fall back to the candidate's own vector.
+        out.push(candidate.vector);
     }
     out
 }
@@ -143,7 +174,16 @@ pub fn site_energies(
                     .flatten()
                     .filter_map(|nb| vectors[nb])
                     .collect();
-                for v in proposals(site, c, &grid, ids, vectors, cfg.search_radius_px) {
+                for v in proposals(
+                    site,
+                    c,
+                    &grid,
+                    ids,
+                    vectors,
+                    cfg.search_radius_px,
+                    ctx.representative.get(&c.id).copied(),
+                    cfg.local_vector_tolerance_px,
+                ) {
                     let terms = Terms {
                         n,
                         m: overlap_pixels(ctx.prev_map, site.block, v, c.id),
@@ -495,15 +535,29 @@ mod tests {
         vectors[g.index(2, 2)] = Some([2, 0]);
         // Id 1 is not the current id: its own vector and its neighbour's.
         assert_eq!(
-            proposals(&site, &c1, &g, &ids, &vectors, 24),
+            proposals(&site, &c1, &g, &ids, &vectors, 24, None, 48),
             vec![[5, 5], [-3, 1]]
         );
         // Id 2 is current: current, own, neighbour (same as own), ±1 steps of current.
         assert_eq!(
-            proposals(&site, &c2, &g, &ids, &vectors, 24),
+            proposals(&site, &c2, &g, &ids, &vectors, 24, None, 48),
             vec![[2, 1], [2, 0], [3, 1], [1, 1], [2, 2]]
         );
-        assert_eq!(proposals(&site, &c1, &g, &ids, &vectors, 4), vec![[-3, 1]]);
+        assert_eq!(
+            proposals(&site, &c1, &g, &ids, &vectors, 4, None, 48),
+            vec![[-3, 1]]
+        );
+        // The representative comes first after the current vector, and the tolerance keeps
+        // only vectors near it: ±1 px around [2, 0] keeps [2, 1], [2, 0], [3, 1], [1, 1].
+        assert_eq!(
+            proposals(&site, &c2, &g, &ids, &vectors, 24, Some([2, 0]), 1),
+            vec![[2, 1], [2, 0], [3, 1], [1, 1]]
+        );
+        // Tolerance 0: the representative only, whatever the block matched.
+        assert_eq!(
+            proposals(&site, &c1, &g, &ids, &vectors, 24, Some([4, 4]), 0),
+            vec![[4, 4]]
+        );
     }
 
     #[test]

@@ -97,6 +97,10 @@ pub struct MrfConfig {
     /// extension, see docs/MRF.md; 65 = the paper's rounding only). Default 65: the
     /// extension did not help on our scenes (docs/MRF.md).
     pub min_overlap_px: u32,
+    /// Improved variant: the vectors the sampler proposes for an id lie within this many px
+    /// (per axis) of the id's representative vector (see `gibbs::proposals`). Default 0;
+    /// 48 switches the bound off.
+    pub local_vector_tolerance_px: u32,
     /// Blocks along each frame edge excluded from tracking (the paper's experiment: 3).
     pub border_blocks: u32,
     /// Smallest connected region of unclaimed moving blocks that becomes a new object,
@@ -133,6 +137,7 @@ impl Default for MrfConfig {
             n_th_mv: 1,
             v_diff_px: 1,
             min_overlap_px: 65,
+            local_vector_tolerance_px: 0,
             border_blocks: 3,
             birth_min_blocks: 4,
             moving_fraction: 0.25,
@@ -231,7 +236,7 @@ pub struct StageTimes {
     pub background_s: f64,
     /// Step 1, block matching.
     pub matching_s: f64,
-    /// Step 2, propagation (and the legacy representative vectors).
+    /// Step 2, propagation (and the representative vectors).
     pub propagation_s: f64,
     /// Steps 3–5, the Gibbs sampler.
     pub gibbs_s: f64,
@@ -427,11 +432,7 @@ impl MrfTracker {
                 );
                 let (mut ids, mut vectors) = (p.ids, p.vectors);
                 // Steps 3–5.
-                let representative = if self.config.variant == Variant::Legacy {
-                    gibbs::representative_vectors(&self.map, &motion.vectors)
-                } else {
-                    Default::default()
-                };
+                let representative = gibbs::representative_vectors(&self.map, &motion.vectors);
                 let ctx = gibbs::Context {
                     prev_gray,
                     cur_gray: &gray,
