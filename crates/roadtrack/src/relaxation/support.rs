@@ -167,7 +167,7 @@ impl SupportLists {
             let r = self.start[e] as usize..self.start[e + 1] as usize;
             *o = self.items[r].iter().map(|&x| p[x as usize]).sum();
         };
-        const CHUNK: usize = 16 * PAR_BLOCK;
+        const CHUNK: usize = 4 * PAR_BLOCK;
         if out.len() > CHUNK {
             out.par_chunks_mut(CHUNK)
                 .enumerate()

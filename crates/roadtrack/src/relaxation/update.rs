@@ -117,19 +117,18 @@ impl RelaxationProblem {
         let q: Vec<Point> = frame2.iter().map(|d| d.pos_px).collect();
         let graph = LabelGraph::new(&p, &q, cfg.gate_half_width_px)?;
         let (r, t) = (cfg.neighbour_radius_px, cfg.similar_displacement_px);
-        let fwd_support = SupportLists::build(&p, &graph.fwd_start, &graph.fwd_disp, r, t)?;
         let bidirectional = cfg.variant.bidirectional();
-        let bwd_support = if bidirectional {
-            Some(SupportLists::build(
-                &q,
-                &graph.bwd_start,
-                &graph.bwd_disp,
-                r,
-                t,
-            )?)
-        } else {
-            None
-        };
+        // The two directions are independent: built side by side (each is also parallel
+        // over vehicle blocks, but its final concatenation is serial).
+        let (fwd_support, bwd_support) = rayon::join(
+            || SupportLists::build(&p, &graph.fwd_start, &graph.fwd_disp, r, t),
+            || {
+                bidirectional
+                    .then(|| SupportLists::build(&q, &graph.bwd_start, &graph.bwd_disp, r, t))
+                    .transpose()
+            },
+        );
+        let (fwd_support, bwd_support) = (fwd_support?, bwd_support?);
         // Validated above: every detection has a colour when the variant needs one.
         let colours = |f: &[&Detection]| -> Vec<[f64; 3]> {
             f.iter().map(|d| d.colour_rgb.unwrap_or([0.0; 3])).collect()
@@ -139,18 +138,24 @@ impl RelaxationProblem {
         } else {
             (Vec::new(), Vec::new())
         };
-        let initial_p = initial_probabilities(
-            &graph.fwd_start,
-            &graph.fwd_target,
-            colour.then_some((&c1[..], &c2[..])),
+        let (initial_p, initial_q) = rayon::join(
+            || {
+                initial_probabilities(
+                    &graph.fwd_start,
+                    &graph.fwd_target,
+                    colour.then_some((&c1[..], &c2[..])),
+                )
+            },
+            || {
+                bidirectional.then(|| {
+                    initial_probabilities(
+                        &graph.bwd_start,
+                        &graph.bwd_target,
+                        colour.then_some((&c2[..], &c1[..])),
+                    )
+                })
+            },
         );
-        let initial_q = bidirectional.then(|| {
-            initial_probabilities(
-                &graph.bwd_start,
-                &graph.bwd_target,
-                colour.then_some((&c2[..], &c1[..])),
-            )
-        });
         Ok(Self {
             graph,
             ids1,
@@ -218,32 +223,36 @@ impl RelaxationProblem {
     fn step_with(&self, sol: &mut Solution, w: &UpdateWeights, buf: &mut Buffers) -> f64 {
         let g = &self.graph;
         // Supports from the old probabilities only (double buffer).
-        self.fwd_support.sums(&sol.p.real, &mut buf.p_hat);
-        let mut change;
+        let change;
         match (&sol.q, &self.bwd_support, &mut buf.q_new) {
             (Some(q), Some(bwd), Some(q_new)) => {
-                bwd.sums(&q.real, &mut buf.q_hat);
-                change = update_direction(
-                    &g.fwd_start,
-                    &g.fwd_twin,
-                    &sol.p,
-                    &buf.p_hat,
-                    Some(&buf.q_hat),
-                    w,
-                    &mut buf.p_new,
+                // The two directions side by side (each value is still computed by one
+                // thread in a fixed order: thread count does not change the bits).
+                let (p_hat, q_hat) = (&mut buf.p_hat, &mut buf.q_hat);
+                rayon::join(
+                    || self.fwd_support.sums(&sol.p.real, p_hat),
+                    || bwd.sums(&q.real, q_hat),
                 );
-                let c = update_direction(
-                    &g.bwd_start,
-                    &g.bwd_twin,
-                    q,
-                    &buf.q_hat,
-                    Some(&buf.p_hat),
-                    w,
-                    q_new,
+                let (p_hat, q_hat) = (&buf.p_hat, &buf.q_hat);
+                let p_new = &mut buf.p_new;
+                let (c1, c2) = rayon::join(
+                    || {
+                        update_direction(
+                            &g.fwd_start,
+                            &g.fwd_twin,
+                            &sol.p,
+                            p_hat,
+                            Some(q_hat),
+                            w,
+                            p_new,
+                        )
+                    },
+                    || update_direction(&g.bwd_start, &g.bwd_twin, q, q_hat, Some(p_hat), w, q_new),
                 );
-                change = change.max(c);
+                change = c1.max(c2);
             }
             _ => {
+                self.fwd_support.sums(&sol.p.real, &mut buf.p_hat);
                 change = update_direction(
                     &g.fwd_start,
                     &g.fwd_twin,
