@@ -5,6 +5,8 @@
 //! ```text
 //! cargo run --release --example mrf_fig10 -- OUT_DIR [FRAMES] [SEEDS] [PNG]
 //! # docs: cargo run --release --example mrf_fig10 -- /tmp/mrf_fig10 250 1,2,3 docs/img/mrf_fig10.png
+//! # improved variant with another vector-proposal bound (docs/MRF.md):
+//! MRF_LOCAL_VECTOR_TOLERANCE_PX=48 cargo run --release --example mrf_fig10 -- /tmp/t48 250 1,2,3
 //! ```
 //!
 //! Truth: a block belongs to the object owning most of its pixels in the renderer's depth
@@ -137,9 +139,19 @@ struct Run {
     tracker_ids: u64,
 }
 
+/// `local_vector_tolerance_px` from `$MRF_LOCAL_VECTOR_TOLERANCE_PX` (default: the
+/// config's default), to compare the improved variant's proposal bound.
+fn tolerance() -> u32 {
+    std::env::var("MRF_LOCAL_VECTOR_TOLERANCE_PX")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(MrfConfig::default().local_vector_tolerance_px)
+}
+
 fn track(seq: &Sequence, variant: Variant, seed: u64) -> roadtrack::Result<Run> {
     let config = MrfConfig {
         variant,
+        local_vector_tolerance_px: tolerance(),
         ..MrfConfig::default()
     };
     let (w, h) = seq.frames[0].size();
