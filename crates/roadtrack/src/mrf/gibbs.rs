@@ -58,9 +58,10 @@ pub fn temperature(config: &MrfConfig, iteration: u32) -> f64 {
 }
 
 /// The vectors the sampler may give a site together with candidate id `candidate`
-/// (improved variant). `representative` is the candidate object's representative vector
-/// (most frequent block-matching vector over its `t − 1` blocks); only vectors within
-/// `tolerance_px` of it (per axis) are proposed, and it is always proposed itself.
+/// (improved variant). `bound` is `(representative, tolerance_px)`: the candidate object's
+/// representative vector (most frequent block-matching vector over its `t − 1` blocks) and
+/// how far (per axis) a proposal may lie from it; the representative is always proposed
+/// itself. `None` (object without a representative yet): no bound.
 // Choice: the vector belongs to the candidate: D and M of candidate O_m use "the local
 // vector of the O_m block it came from" (§3.2), so each candidate proposes its own vectors —
 // its object's representative vector, its block-matching (local) vector, the current
@@ -87,16 +88,16 @@ pub fn proposals(
     ids: &[ObjectId],
     vectors: &[Option<Vector>],
     radius_px: u32,
-    representative: Option<Vector>,
-    tolerance_px: u32,
+    bound: Option<(Vector, u32)>,
 ) -> Vec<Vector> {
     let mut out: Vec<Vector> = Vec::with_capacity(16);
     let r = radius_px as i16;
-    let tol = i32::from(tolerance_px.min(u32::from(u16::MAX) / 2) as u16);
+    let representative = bound.map(|(c, _)| c);
     let near = |v: Vector| {
-        representative.is_none_or(|c| {
-            (i32::from(v[0]) - i32::from(c[0])).abs() <= tol
-                && (i32::from(v[1]) - i32::from(c[1])).abs() <= tol
+        bound.is_none_or(|(c, tolerance_px)| {
+            let tol = i64::from(tolerance_px);
+            (i64::from(v[0]) - i64::from(c[0])).abs() <= tol
+                && (i64::from(v[1]) - i64::from(c[1])).abs() <= tol
         })
     };
     let mut push = |v: Vector| {
@@ -181,8 +182,9 @@ pub fn site_energies(
                     ids,
                     vectors,
                     cfg.search_radius_px,
-                    ctx.representative.get(&c.id).copied(),
-                    cfg.local_vector_tolerance_px,
+                    ctx.representative
+                        .get(&c.id)
+                        .map(|&r| (r, cfg.local_vector_tolerance_px)),
                 ) {
                     let terms = Terms {
                         n,
@@ -535,27 +537,27 @@ mod tests {
         vectors[g.index(2, 2)] = Some([2, 0]);
         // Id 1 is not the current id: its own vector and its neighbour's.
         assert_eq!(
-            proposals(&site, &c1, &g, &ids, &vectors, 24, None, 48),
+            proposals(&site, &c1, &g, &ids, &vectors, 24, None),
             vec![[5, 5], [-3, 1]]
         );
         // Id 2 is current: current, own, neighbour (same as own), ±1 steps of current.
         assert_eq!(
-            proposals(&site, &c2, &g, &ids, &vectors, 24, None, 48),
+            proposals(&site, &c2, &g, &ids, &vectors, 24, None),
             vec![[2, 1], [2, 0], [3, 1], [1, 1], [2, 2]]
         );
         assert_eq!(
-            proposals(&site, &c1, &g, &ids, &vectors, 4, None, 48),
+            proposals(&site, &c1, &g, &ids, &vectors, 4, None),
             vec![[-3, 1]]
         );
         // The representative comes first after the current vector, and the tolerance keeps
         // only vectors near it: ±1 px around [2, 0] keeps [2, 1], [2, 0], [3, 1], [1, 1].
         assert_eq!(
-            proposals(&site, &c2, &g, &ids, &vectors, 24, Some([2, 0]), 1),
+            proposals(&site, &c2, &g, &ids, &vectors, 24, Some(([2, 0], 1))),
             vec![[2, 1], [2, 0], [3, 1], [1, 1]]
         );
         // Tolerance 0: the representative only, whatever the block matched.
         assert_eq!(
-            proposals(&site, &c1, &g, &ids, &vectors, 24, Some([4, 4]), 0),
+            proposals(&site, &c1, &g, &ids, &vectors, 24, Some(([4, 4], 0))),
             vec![[4, 4]]
         );
     }

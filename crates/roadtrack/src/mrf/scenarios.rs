@@ -351,6 +351,9 @@ fn bench_numbers() -> Result<()> {
     Ok(())
 }
 
+/// Frames, per-frame truth regions and per-frame visible fractions of a simulated crossing.
+type SimulatedCrossing = (Vec<Frame>, Vec<Vec<TruthRegion>>, Vec<Vec<f64>>);
+
 /// Two cars driving towards each other in the two lanes of the simulator's `crossing` scene
 /// (oblique view, `w × h` px, 10 frames/s): the eastbound one in the near lane is a tall van
 /// (3 m) and hides part of the westbound car while they pass (frames ≈ 17–24). Returns the
@@ -360,7 +363,7 @@ pub(crate) fn simulated_crossing(
     h: u32,
     frames: u32,
     van_height_m: f64,
-) -> Result<(Vec<Frame>, Vec<Vec<TruthRegion>>, Vec<Vec<f64>>)> {
+) -> Result<SimulatedCrossing> {
     use crate::class::ObjectClass;
     use crate::sim::external::{ExternalTrajectories, TrajectorySample};
     use crate::sim::{SceneKind, SimConfig, Simulation, ViewKind};

@@ -223,8 +223,7 @@ impl RelaxationProblem {
     fn step_with(&self, sol: &mut Solution, w: &UpdateWeights, buf: &mut Buffers) -> f64 {
         let g = &self.graph;
         // Supports from the old probabilities only (double buffer).
-        let change;
-        match (&sol.q, &self.bwd_support, &mut buf.q_new) {
+        let change = match (&sol.q, &self.bwd_support, &mut buf.q_new) {
             (Some(q), Some(bwd), Some(q_new)) => {
                 // The two directions side by side (each value is still computed by one
                 // thread in a fixed order: thread count does not change the bits).
@@ -249,11 +248,11 @@ impl RelaxationProblem {
                     },
                     || update_direction(&g.bwd_start, &g.bwd_twin, q, q_hat, Some(p_hat), w, q_new),
                 );
-                change = c1.max(c2);
+                c1.max(c2)
             }
             _ => {
                 self.fwd_support.sums(&sol.p.real, &mut buf.p_hat);
-                change = update_direction(
+                update_direction(
                     &g.fwd_start,
                     &g.fwd_twin,
                     &sol.p,
@@ -261,9 +260,9 @@ impl RelaxationProblem {
                     None,
                     w,
                     &mut buf.p_new,
-                );
+                )
             }
-        }
+        };
         std::mem::swap(&mut sol.p, &mut buf.p_new);
         if let (Some(q), Some(q_new)) = (&mut sol.q, &mut buf.q_new) {
             std::mem::swap(q, q_new);
