@@ -8,4 +8,6 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/roadtrack-target}"
 export CARGO_TERM_COLOR="${CARGO_TERM_COLOR:-never}"
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
+# The build without tract (`--no-default-features`) must keep compiling: lint it too.
+cargo clippy --workspace --all-targets --no-default-features --locked -- -D warnings
 cargo test --workspace --locked
