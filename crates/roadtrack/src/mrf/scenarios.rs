@@ -18,12 +18,21 @@ pub(crate) fn run(
     empty: &RgbImage,
     seed: u64,
 ) -> Result<Vec<ObjectMap>> {
+    let background =
+        BackgroundModel::from_samples(std::slice::from_ref(empty), config.background.clone())?;
+    run_with_background(config, frames, background, seed)
+}
+
+/// Tracks `frames` with a given background model; returns every map.
+pub(crate) fn run_with_background(
+    config: &MrfConfig,
+    frames: &[Frame],
+    background: BackgroundModel,
+    seed: u64,
+) -> Result<Vec<ObjectMap>> {
     let (w, h) = frames[0].size();
     let mut t = MrfTracker::new(config.clone(), w, h, seed)?;
-    t.set_background(BackgroundModel::from_samples(
-        std::slice::from_ref(empty),
-        config.background.clone(),
-    )?)?;
+    t.set_background(background)?;
     let mut maps = Vec::new();
     for f in frames {
         t.step(f)?;
@@ -452,14 +461,7 @@ fn crossing_cars_keep_distinct_ids_through_partial_occlusion_on_the_simulator() 
             variant,
             ..MrfConfig::default()
         };
-        let (w, h) = frames[0].size();
-        let mut t = MrfTracker::new(cfg, w, h, 5)?;
-        t.set_background(background.clone())?;
-        let mut maps = Vec::new();
-        for f in &frames {
-            t.step(f)?;
-            maps.push(t.object_map().clone());
-        }
+        let maps = run_with_background(&cfg, &frames, background.clone(), 5)?;
         // Before the crossing (frame 10) and after it (frame 40): two distinct ids, the same.
         let before = dominant_ids(&truth[9], &maps[9]);
         let after = dominant_ids(&truth[39], &maps[39]);
