@@ -562,6 +562,43 @@ mod tests {
     }
 
     #[test]
+    fn permuted_input_order_gives_the_same_matches() -> Result<()> {
+        // The internal grid order is computed from positions; the input order only breaks
+        // ties inside a cell, which can change the order of additions, not the pairs.
+        let (f1, f2, _) = super::super::scale::generate_road_network_pair(
+            3000,
+            &super::super::scale::NetworkConfig::default(),
+            5,
+        )?;
+        let cfg = RelaxationConfig::default();
+        let pairs = |m: &Matching| -> Vec<(u64, Option<u64>)> {
+            let mut v: Vec<_> = m
+                .ids1
+                .iter()
+                .zip(&m.partner)
+                .map(|(&a, k)| (a, k.map(|k| m.ids2[k])))
+                .collect();
+            v.sort_unstable();
+            v
+        };
+        let a = match_vehicles(&f1, &f2, &cfg)?;
+        let r1: Vec<_> = f1.iter().rev().cloned().collect();
+        let r2: Vec<_> = f2.iter().rev().cloned().collect();
+        let b = match_vehicles(&r1, &r2, &cfg)?;
+        assert_eq!(pairs(&a), pairs(&b));
+        // The internal order is the grid order, whatever the input order.
+        let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
+        let ys: Vec<f64> = prob
+            .order1
+            .iter()
+            .map(|&i| f1[i as usize].pos_px.y)
+            .collect();
+        let cells: Vec<i64> = ys.iter().map(|y| (y / 200.0).floor() as i64).collect();
+        assert!(cells.windows(2).all(|w| w[0] <= w[1]));
+        Ok(())
+    }
+
+    #[test]
     fn results_are_identical_at_any_thread_count() -> Result<()> {
         // Large enough (5 000 vehicles) that the label, support and update loops split
         // into parallel blocks.
