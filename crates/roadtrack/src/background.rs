@@ -279,6 +279,23 @@ pub fn bootstrap_from_source(
     BackgroundModel::from_samples(&samples, config)
 }
 
+/// A background model bootstrapped from frames already in memory: `bootstrap_frames`
+/// of them spread evenly over the slice (see [`bootstrap_positions`]).
+///
+/// # Errors
+/// No frames, or frames of different sizes (see [`BackgroundModel::from_samples`]).
+pub fn bootstrap_from_frames(
+    frames: &[crate::frame::Frame],
+    config: BackgroundConfig,
+) -> Result<BackgroundModel> {
+    let samples: Vec<RgbImage> =
+        bootstrap_positions(Some(frames.len() as u32), config.bootstrap_frames)
+            .iter()
+            .map(|&p| frames[p as usize].image.clone())
+            .collect();
+    BackgroundModel::from_samples(&samples, config)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -286,6 +303,31 @@ mod tests {
 
     fn plain(v: u8) -> RgbImage {
         RgbImage::from_pixel(16, 12, Rgb([v, v, v]))
+    }
+
+    #[test]
+    fn bootstrap_from_frames_uses_the_evenly_spread_frames() -> Result<()> {
+        // 8 frames of grey levels 0, 10, …, 70; 4 bootstrap frames → positions 0, 2, 4, 6
+        // (levels 0, 20, 40, 60): the per-pixel median is the same as from those samples.
+        let frames: Vec<crate::frame::Frame> = (0..8u8)
+            .map(|i| crate::frame::Frame {
+                index: u32::from(i) + 1,
+                time_s: f64::from(i) / 10.0,
+                image: plain(10 * i),
+            })
+            .collect();
+        let config = BackgroundConfig {
+            bootstrap_frames: 4,
+            ..BackgroundConfig::default()
+        };
+        let direct = BackgroundModel::from_samples(
+            &[plain(0), plain(20), plain(40), plain(60)],
+            config.clone(),
+        )?;
+        let model = bootstrap_from_frames(&frames, config)?;
+        assert_eq!(model.background(), direct.background());
+        assert!(bootstrap_from_frames(&[], BackgroundConfig::default()).is_err());
+        Ok(())
     }
 
     #[test]

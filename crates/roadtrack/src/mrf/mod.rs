@@ -28,7 +28,7 @@ mod scenarios;
 pub mod separation;
 pub mod synthetic;
 
-use crate::background::{BackgroundConfig, BackgroundModel, bootstrap_positions};
+use crate::background::{BackgroundConfig, BackgroundModel, bootstrap_from_frames};
 use crate::class::ObjectClass;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -587,19 +587,8 @@ pub fn bench_mrf(
         .first()
         .ok_or_else(|| Error::Invalid("bench_mrf needs at least one frame".into()))?;
     let (w, h) = first.size();
-    let pos = bootstrap_positions(
-        Some(frames.len() as u32),
-        config.background.bootstrap_frames,
-    );
-    let samples: Vec<_> = pos
-        .iter()
-        .map(|&p| frames[p as usize].image.clone())
-        .collect();
     let mut tracker = MrfTracker::new(config.clone(), w, h, seed)?;
-    tracker.set_background(BackgroundModel::from_samples(
-        &samples,
-        config.background.clone(),
-    )?)?;
+    tracker.set_background(bootstrap_from_frames(frames, config.background.clone())?)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .build()

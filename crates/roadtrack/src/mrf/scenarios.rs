@@ -4,7 +4,7 @@ use super::object_map::{NO_OBJECT, ObjectId, ObjectMap};
 use super::separation::{TruthRegion, separation_curve};
 use super::synthetic::{SynthObject, SynthScene};
 use super::{MrfConfig, MrfTracker, Variant};
-use crate::background::BackgroundModel;
+use crate::background::{BackgroundModel, bootstrap_from_frames};
 use crate::error::Result;
 use crate::frame::Frame;
 use image::RgbImage;
@@ -121,6 +121,32 @@ pub(crate) fn group_scene() -> SynthScene {
     }
 }
 
+/// Objects 1 and 2 carry two distinct output ids at frame index `from` and the same two
+/// at frame index `to` (ids from the majority of each object's visible blocks).
+fn assert_two_ids_kept(
+    variant: Variant,
+    truth: &[Vec<TruthRegion>],
+    maps: &[ObjectMap],
+    from: usize,
+    to: usize,
+) {
+    let first = dominant_ids(&truth[from], &maps[from]);
+    let last = dominant_ids(&truth[to], &maps[to]);
+    let (a, b) = (first[&1], first[&2]);
+    assert!(
+        a.is_some() && b.is_some() && a != b,
+        "{variant:?}: ids at frame index {from}: {first:?}"
+    );
+    assert_eq!(
+        last[&1], a,
+        "{variant:?}: object 1 changed id by frame index {to}"
+    );
+    assert_eq!(
+        last[&2], b,
+        "{variant:?}: object 2 changed id by frame index {to}"
+    );
+}
+
 #[test]
 fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> {
     for variant in [Variant::Improved, Variant::Legacy] {
@@ -131,15 +157,7 @@ fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> 
             ..MrfConfig::default()
         };
         let maps = run(&cfg, &frames, &seq.empty_frame(), 5)?;
-        let first = dominant_ids(&truth[1], &maps[1]);
-        let last = dominant_ids(&truth[43], &maps[43]);
-        let (a, b) = (first[&1], first[&2]);
-        assert!(
-            a.is_some() && b.is_some() && a != b,
-            "{variant:?}: frame 2 ids {first:?}"
-        );
-        assert_eq!(last[&1], a, "{variant:?}: front object changed id");
-        assert_eq!(last[&2], b, "{variant:?}: back object changed id");
+        assert_two_ids_kept(variant, &truth, &maps, 1, 43);
         // While they overlap, each is still its own region in (nearly) every frame.
         let curve = separation_curve(&truth, &maps, 1);
         assert!(curve[0].trials >= 10, "{variant:?}: {curve:?}");
@@ -266,19 +284,8 @@ fn runs_on_vtest_avi_and_tracks_walking_people() -> Result<()> {
     let frames: Vec<Frame> = crate::io::source::open(path, &opts)?.collect::<Result<_>>()?;
     let (w, h) = frames[0].size();
     let cfg = MrfConfig::default();
-    let pos = crate::background::bootstrap_positions(
-        Some(frames.len() as u32),
-        cfg.background.bootstrap_frames,
-    );
-    let samples: Vec<_> = pos
-        .iter()
-        .map(|&p| frames[p as usize].image.clone())
-        .collect();
     let mut t = MrfTracker::new(cfg.clone(), w, h, 0)?;
-    t.set_background(BackgroundModel::from_samples(
-        &samples,
-        cfg.background.clone(),
-    )?)?;
+    t.set_background(bootstrap_from_frames(&frames, cfg.background.clone())?)?;
     let mut ids_per_frame = Vec::new();
     let mut last = Vec::new();
     for f in &frames {
@@ -447,15 +454,7 @@ fn crossing_cars_keep_distinct_ids_through_partial_occlusion_on_the_simulator() 
         "{occluded_frames} frames with occlusion"
     );
     let cfg = MrfConfig::default();
-    let pos = crate::background::bootstrap_positions(
-        Some(frames.len() as u32),
-        cfg.background.bootstrap_frames,
-    );
-    let samples: Vec<_> = pos
-        .iter()
-        .map(|&p| frames[p as usize].image.clone())
-        .collect();
-    let background = BackgroundModel::from_samples(&samples, cfg.background.clone())?;
+    let background = bootstrap_from_frames(&frames, cfg.background.clone())?;
     for variant in [Variant::Improved, Variant::Legacy] {
         let cfg = MrfConfig {
             variant,
@@ -463,15 +462,7 @@ fn crossing_cars_keep_distinct_ids_through_partial_occlusion_on_the_simulator() 
         };
         let maps = run_with_background(&cfg, &frames, background.clone(), 5)?;
         // Before the crossing (frame 10) and after it (frame 40): two distinct ids, the same.
-        let before = dominant_ids(&truth[9], &maps[9]);
-        let after = dominant_ids(&truth[39], &maps[39]);
-        let (a, b) = (before[&1], before[&2]);
-        assert!(
-            a.is_some() && b.is_some() && a != b,
-            "{variant:?}: ids at frame 10 {before:?}"
-        );
-        assert_eq!(after[&1], a, "{variant:?}: near car changed id");
-        assert_eq!(after[&2], b, "{variant:?}: far car changed id");
+        assert_two_ids_kept(variant, &truth, &maps, 9, 39);
         // While partly hidden, the far car is its own region in every frame.
         let curve = separation_curve(&truth, &maps, 1);
         assert!(curve[0].trials >= 5, "{variant:?}: {curve:?}");
