@@ -162,9 +162,10 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         if ssd.is_none() {
             ui.info("note: SSD model absent (scripts/setup.sh --models); skipping the SSD rows");
         }
-        results.extend(roadtrack::cnn::bench::bench_cnn_stages(ssd.as_deref())?);
         let cfg = roadtrack::filter::bench::FilterBenchConfig::default();
-        for r in roadtrack::cnn::bench::bench_phd_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})? {
+        let (stages, phd) = roadtrack::cnn::bench::bench_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})?;
+        results.extend(stages);
+        for r in phd {
             let stages = [
                 ("predict", r.predict_ms),
                 ("likelihood", r.likelihood_ms),

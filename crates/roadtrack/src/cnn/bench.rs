@@ -3,7 +3,7 @@
 //! The issue's budget (METHODS.md §3, issue 7): ≥ 30 frames/s at 640×480 with 10 targets ×
 //! 70 particles. Per-window scoring runs the network 700 times a frame; dense mode runs it
 //! once and looks 700 positions up in the [`ScoreMap`](super::ScoreMap).
-//! [`bench_cnn_stages`] and [`bench_phd_cnn`] are what `roadtrack bench --stages cnn`
+//! [`bench_cnn`] ([`bench_cnn_stages`] and [`bench_phd_cnn`]) is what `roadtrack bench --stages cnn`
 //! runs: the network stages alone, and a whole PHD tracking step with a CNN likelihood,
 //! per stage.
 
@@ -184,17 +184,35 @@ pub fn train_bench_classifier(cfg: &FilterBenchConfig, path: &Path) -> Result<f6
     Ok(report.test_accuracy)
 }
 
-/// The CNN stages of `roadtrack bench --stages cnn` on a 640×480 frame: per-window
-/// scoring of 700 patches and dense maps (stride 8 px) + 700 lookups for the trained-size
-/// CNN ([`train_bench_classifier`]), and the SSD's dense map when `ssd_model` is given.
+/// What `roadtrack bench --stages cnn` runs, with the classifier trained once: the network
+/// stages alone ([`bench_cnn_stages`]) and a whole PHD step per stage ([`bench_phd_cnn`]),
+/// on the filter benchmark's scene `cfg`; the SSD rows when `ssd_model` is given.
+/// `progress` gets `(PHD runs done, PHD runs)`.
+///
+/// # Errors
+/// When training, a model or a tracker fails.
+pub fn bench_cnn(
+    cfg: &FilterBenchConfig,
+    ssd_model: Option<&Path>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(Vec<StageResult>, Vec<StageReport>)> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("temporary folder", e))?;
+    let path = dir.path().join("person.onnx");
+    train_bench_classifier(cfg, &path)?;
+    let stages = bench_cnn_stages(&path, ssd_model)?;
+    let phd = bench_phd_cnn(cfg, &path, ssd_model, progress)?;
+    Ok((stages, phd))
+}
+
+/// The CNN stages on a 640×480 frame: per-window scoring of 700 patches and dense maps
+/// (stride 8 px) + 700 lookups for the classifier at `classifier` (the trained-size CNN of
+/// [`train_bench_classifier`] in `roadtrack bench`), and the SSD's dense map when
+/// `ssd_model` is given.
 ///
 /// # Errors
 /// When a model fails to load or run.
-pub fn bench_cnn_stages(ssd_model: Option<&Path>) -> Result<Vec<StageResult>> {
-    let dir = tempfile::tempdir().map_err(|e| Error::io("temporary folder", e))?;
-    let path = dir.path().join("person.onnx");
-    train_bench_classifier(&FilterBenchConfig::default(), &path)?;
-    let model = OnnxClassifier::load(&path, &CnnConfig::default())?;
+pub fn bench_cnn_stages(classifier: &Path, ssd_model: Option<&Path>) -> Result<Vec<StageResult>> {
+    let model = OnnxClassifier::load(classifier, &CnnConfig::default())?;
     let name = "trained-size CNN 64×32";
     let mut out = vec![
         bench_window_scoring(&model, name, 700)?,
@@ -215,7 +233,8 @@ pub fn bench_cnn_stages(ssd_model: Option<&Path>) -> Result<Vec<StageResult>> {
 
 /// A whole PHD tracking step with a network likelihood, per stage, on the filter
 /// benchmark's scene (`cfg`: 640×480, 10 targets × 70 particles by default): the
-/// trained-size CNN ([`train_bench_classifier`]) per particle window (`phd_cnn_window`)
+/// classifier at `classifier` (in `roadtrack bench` the trained-size CNN of
+/// [`train_bench_classifier`], trained on that scene) per particle window (`phd_cnn_window`)
 /// and dense at `cfg.dense_stride_px` (`phd_cnn_dense`), and the SSD dense at the same
 /// stride when `ssd_model` is given (`phd_ssd_dense`; the scene has no people, so its
 /// labels die and only the per-frame map cost is meaningful). `progress` gets
@@ -225,18 +244,16 @@ pub fn bench_cnn_stages(ssd_model: Option<&Path>) -> Result<Vec<StageResult>> {
 /// When a model fails to load or run, or a tracker fails.
 pub fn bench_phd_cnn(
     cfg: &FilterBenchConfig,
+    classifier: &Path,
     ssd_model: Option<&Path>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<StageReport>> {
-    let dir = tempfile::tempdir().map_err(|e| Error::io("temporary folder", e))?;
-    let path = dir.path().join("person.onnx");
-    train_bench_classifier(cfg, &path)?;
-    let model = Arc::new(OnnxClassifier::load(&path, &CnnConfig::default())?);
+    let model = Arc::new(OnnxClassifier::load(classifier, &CnnConfig::default())?);
     let runs = 2 + u64::from(ssd_model.is_some());
     let mut out = vec![bench_phd_with(
         cfg,
         "phd_cnn_window",
-        Box::new(OnnxClassifier::load(&path, &CnnConfig::default())?),
+        Box::new(OnnxClassifier::load(classifier, &CnnConfig::default())?),
     )?];
     progress(1, runs);
     out.push(bench_phd_with(
