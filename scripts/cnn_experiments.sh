@@ -114,7 +114,7 @@ for lik, (c, ids) in rows.items():
         print(f"  frames {a+1}-{a+len(seg)}: mean {sum(seg)/len(seg):.2f}")
 PY
   # Σw per frame and its plot (the library run behind the same tracker).
-  cargo build -q -p roadtrack --example filter_experiments
+  cargo build -q -p roadtrack-cnn --example filter_experiments
   fx="${CARGO_TARGET_DIR:-$here/target}/debug/examples/filter_experiments"
   FX_LIKELIHOOD=ssd "$fx" vtest "$video" "$out/fx_ssd"
   cp "$out/fx_ssd/phd_vtest_count.png" docs/img/phd_ssd_vtest_count.png

@@ -11,7 +11,7 @@ out="${1:-/tmp/fx}"
 frames="${2:-200}"
 seeds="${3:-3}"
 cd "$here"
-cargo build -p roadtrack --example filter_experiments
+cargo build -p roadtrack-cnn --example filter_experiments
 bin="${CARGO_TARGET_DIR:-$here/target}/debug/examples/filter_experiments"
 "$bin" sim "$out/sim" "$frames" "$seeds"          # → $out/sim/tables.md, runs.json
 video="$here/../shared/data/vtest.avi"

@@ -24,7 +24,7 @@ import onnx
 from onnx import TensorProto, helper, numpy_helper
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "..", "crates", "roadtrack", "tests", "fixtures")
+OUT = os.path.join(HERE, "..", "crates", "roadtrack-cnn", "tests", "fixtures")
 H, W = 32, 16
 BATCH = 3
 

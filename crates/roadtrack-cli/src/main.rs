@@ -3,6 +3,7 @@
 
 mod cmd;
 mod common;
+mod demo;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

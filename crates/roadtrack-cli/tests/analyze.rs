@@ -1,6 +1,6 @@
 //! End-to-end test of `roadtrack analyze` against the simulator's truth.
 
-use roadtrack::sim::{SceneKind, SimConfig, ViewKind};
+use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::collections::{BTreeMap, BTreeSet};
 use std::process::Command;
 
@@ -32,7 +32,7 @@ fn counts_and_turning_movements_on_a_simulated_intersection_equal_the_truth() {
         frames: 300,
         ..Default::default()
     };
-    roadtrack::sim::simulate(&cfg, 11, &seq, &mut |_, _| {}).expect("simulate");
+    roadtrack_sim::simulate(&cfg, 11, &seq, &mut |_, _| {}).expect("simulate");
 
     // Reference, straight from truth.csv (ground metres of every object): first and last
     // arm of each vehicle, and crossings of the line y = 30 across the north arm.
@@ -109,7 +109,7 @@ fn counts_and_turning_movements_on_a_simulated_intersection_equal_the_truth() {
     std::fs::write(&zfile, zones).expect("zones");
     // gt.txt has MOT17 classes; analyse vehicles only, as the reference does.
     let gt = roadtrack::io::mot::read_gt(&seq.join("gt/gt.txt")).expect("gt");
-    let vehicles: Vec<roadtrack::track::TrackPoint> = gt
+    let vehicles: Vec<roadtrack::track_point::TrackPoint> = gt
         .iter()
         .filter(|r| r.class != 1)
         .map(|r| {

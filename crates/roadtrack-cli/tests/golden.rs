@@ -224,7 +224,8 @@ fn every_method_on_the_tiny_fixture_is_unchanged() {
     names.push("maps/object_maps.csv".into());
     #[cfg(feature = "cnn")]
     {
-        let model = fixture("tiny_classifier.onnx");
+        let model = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../roadtrack-cnn/tests/fixtures/tiny_classifier.onnx");
         let model = model.to_str().expect("utf-8 path");
         for m in ["pf", "phd"] {
             let t = format!("{m}_cnn.txt");

@@ -1,6 +1,6 @@
 //! End-to-end tests of `roadtrack track`.
 
-use roadtrack::sim::{SceneKind, SimConfig, ViewKind};
+use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::Path;
 use std::process::Command;
 
@@ -15,7 +15,7 @@ fn simulate(dir: &Path, scene: SceneKind, view: ViewKind, frames: u32) {
         frames,
         ..Default::default()
     };
-    roadtrack::sim::simulate(&cfg, 5, dir, &mut |_, _| {}).expect("simulate");
+    roadtrack_sim::simulate(&cfg, 5, dir, &mut |_, _| {}).expect("simulate");
 }
 
 #[test]
@@ -57,9 +57,9 @@ fn relaxation_tracks_simulated_road_with_ground_speeds_and_good_scores() {
     // Cars are about 14 × 5 px at 0.33 m/px and the extracted regions include shadows, so
     // box IoU is a poor judge here; the seed 000/004 detection table with a 10 px (3.3 m)
     // centre gate is the measure.
-    let table = roadtrack::metrics::papers::detection_table(
-        &roadtrack::metrics::papers::points_from_gt(&gt),
-        &roadtrack::metrics::papers::points_from_tracks(&tr),
+    let table = roadtrack::eval::papers::detection_table(
+        &roadtrack::eval::papers::points_from_gt(&gt),
+        &roadtrack::eval::papers::points_from_tracks(&tr),
         10.0,
     )
     .expect("table");
@@ -135,7 +135,7 @@ fn demo_reports_every_method_with_pictures() {
 #[cfg(feature = "cnn")]
 const TINY_CNN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../roadtrack/tests/fixtures/tiny_classifier.onnx"
+    "/../roadtrack-cnn/tests/fixtures/tiny_classifier.onnx"
 );
 
 /// Tracks in `path` are valid: readable, inside `1..=frames`, finite positive boxes.
@@ -218,7 +218,7 @@ fn a_model_trained_by_train_is_loaded_by_the_tracker_densely_and_per_window() {
         frames: 10,
         ..Default::default()
     };
-    roadtrack::sim::simulate(&cfg, 9, &train_seq, &mut |_, _| {}).expect("simulate");
+    roadtrack_sim::simulate(&cfg, 9, &train_seq, &mut |_, _| {}).expect("simulate");
     let model = dir.path().join("person.onnx");
     let o = bin()
         .arg("train")

@@ -5,10 +5,10 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use roadtrack::cnn::{CnnConfig, OnnxClassifier};
 use roadtrack::geometry::{BBox, Point};
 use roadtrack::io::mot::{MotGtRow, write_gt};
 use roadtrack::io::seqinfo::SeqInfo;
+use roadtrack_cnn::{CnnConfig, OnnxClassifier};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_roadtrack"))

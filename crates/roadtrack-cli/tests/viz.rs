@@ -2,7 +2,7 @@
 //! sequence (fixtures/README.md: a red 12 × 8 box with top-left (4 + 3i, 16) and a blue
 //! 10 × 10 box with top-left (80 − 5i, 44) in frame i of 10, 96 × 72 px).
 
-use roadtrack::overlay::id_colour;
+use roadtrack_viz::overlay::id_colour;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -224,7 +224,7 @@ fn plot_charts_series_from_a_table_and_refuses_bad_usage() {
         .args(["--x", "dt", "--y", "rate", "--group", "variant", "-o"])
         .arg(&png));
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(rgb(&png).dimensions(), roadtrack::plot::LINE_CHART_SIZE);
+    assert_eq!(rgb(&png).dimensions(), roadtrack_viz::plot::LINE_CHART_SIZE);
     // A column that is not there: exit 1 naming it.
     let o = run(bin()
         .arg("plot")

@@ -6,8 +6,8 @@
 //! cargo run -p roadtrack --example evaluate_bench -- DIR [REPS]
 //! ```
 
+use roadtrack::eval::{EvalConfig, evaluate};
 use roadtrack::io::mot::{read_gt, read_tracks};
-use roadtrack::metrics::{EvalConfig, evaluate};
 use std::path::Path;
 use std::time::Instant;
 

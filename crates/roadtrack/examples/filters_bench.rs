@@ -5,7 +5,7 @@
 //! cargo run -p roadtrack --example filters_bench [-- FRAMES [STRIDE_PX]]
 //! ```
 
-use roadtrack::filter::bench::{FilterBenchConfig, bench_filters};
+use roadtrack::track::filter::bench::{FilterBenchConfig, bench_filters};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

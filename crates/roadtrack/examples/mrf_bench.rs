@@ -10,10 +10,10 @@
 //! second of the process (user + system from `/proc/self/stat`, 10 ms ticks, minus the
 //! background bootstrap; robust to a shared machine), and wall time per stage.
 
-use roadtrack::background::{BackgroundModel, bootstrap_positions};
+use roadtrack::detect::background_model::{BackgroundModel, bootstrap_positions};
 use roadtrack::frame::Frame;
-use roadtrack::mrf::{MrfConfig, Variant, bench_mrf};
-use roadtrack::sim::{SimConfig, ViewKind, simulate_in_memory};
+use roadtrack::track::mrf::{MrfConfig, Variant, bench_mrf};
+use roadtrack_sim::{SimConfig, ViewKind, simulate_in_memory};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -106,7 +106,7 @@ fn process_cpu_s() -> f64 {
 /// CPU time per block of each block-matching path on one 640×480 pair of the simulated
 /// crossing (±24 px, 1 000 blocks spread over the frame, guess (0, 0)).
 fn kernel() -> Result<(), Box<dyn std::error::Error>> {
-    use roadtrack::mrf::block_matching::{
+    use roadtrack::track::mrf::block_matching::{
         gray_from_rgb, match_block_reference, match_block_simd, match_block_with,
     };
     let config = SimConfig {

@@ -16,14 +16,14 @@
 //! (`scene,variant,area_lo,area_hi,trials,successes,rate`), `OUT_DIR/metrics.csv`, the
 //! chart, and prints Markdown tables.
 
-use roadtrack::background::{BackgroundModel, bootstrap_positions};
+use roadtrack::detect::background_model::{BackgroundModel, bootstrap_positions};
+use roadtrack::eval::{ClassMode, EvalConfig, evaluate, rows_from_points};
 use roadtrack::frame::Frame;
-use roadtrack::metrics::{ClassMode, EvalConfig, evaluate, rows_from_points};
-use roadtrack::mrf::object_map::ObjectMap;
-use roadtrack::mrf::separation::{TruthRegion, separated, truth_regions_from_owner};
-use roadtrack::mrf::{MrfConfig, MrfTracker, Variant};
-use roadtrack::plot::{Series, line_chart};
-use roadtrack::sim::{SimConfig, Simulation, TruthRow, ViewKind, gt_rows};
+use roadtrack::track::mrf::object_map::ObjectMap;
+use roadtrack::track::mrf::separation::{TruthRegion, separated, truth_regions_from_owner};
+use roadtrack::track::mrf::{MrfConfig, MrfTracker, Variant};
+use roadtrack_sim::{SimConfig, Simulation, TruthRow, ViewKind, gt_rows};
+use roadtrack_viz::plot::{Series, line_chart};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 

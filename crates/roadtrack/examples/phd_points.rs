@@ -8,9 +8,9 @@
 //! With `OUT_DIR = crates/roadtrack/tests/golden/filter` and seed 7 it regenerates the
 //! committed scenario of the Stone Soup comparison (see the README there).
 
-use roadtrack::filter::points::{PointFilterConfig, filter_points};
-use roadtrack::filter::scenario::{PointScenarioConfig, simulate_points};
 use roadtrack::io::points::{read_measurements, write_estimates, write_measurements};
+use roadtrack::track::filter::points::{PointFilterConfig, filter_points};
+use roadtrack::track::filter::scenario::{PointScenarioConfig, simulate_points};
 use std::path::PathBuf;
 use std::time::Instant;
 

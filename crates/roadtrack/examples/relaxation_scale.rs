@@ -6,9 +6,9 @@
 //! ```
 //! Default sizes: 50 1000 10000 100000. Set RAYON_NUM_THREADS to pin the thread count.
 
-use roadtrack::relaxation::baselines::{nearest_neighbour, optimal_assignment};
-use roadtrack::relaxation::scale::NetworkConfig;
-use roadtrack::relaxation::{RelaxationConfig, bench_scale, generate_road_network_pair};
+use roadtrack::track::relaxation::baselines::{nearest_neighbour, optimal_assignment};
+use roadtrack::track::relaxation::scale::NetworkConfig;
+use roadtrack::track::relaxation::{RelaxationConfig, bench_scale, generate_road_network_pair};
 
 fn main() -> roadtrack::Result<()> {
     let sizes: Vec<usize> = std::env::args()

@@ -4,7 +4,7 @@
 //! cargo run -p roadtrack --example relaxation_sweep -- PROBLEMS_DIR [OUT.csv]
 //! ```
 
-use roadtrack::relaxation::{RelaxationConfig, SweepGrid, sweep};
+use roadtrack::track::relaxation::{RelaxationConfig, SweepGrid, sweep};
 use std::path::PathBuf;
 
 fn main() -> roadtrack::Result<()> {

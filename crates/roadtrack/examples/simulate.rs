@@ -5,7 +5,7 @@
 //! cargo run --example simulate -- bench SCENE VIEW FRAMES
 //! ```
 
-use roadtrack::sim::{SimConfig, benchmark, simulate};
+use roadtrack_sim::{SimConfig, benchmark, simulate};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -41,12 +41,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(v) = args.get(4) {
             config.road.speed_limit_mps = v.parse()?;
         }
-        let pairs = roadtrack::sim::PairsConfig {
+        let pairs = roadtrack_sim::PairsConfig {
             dt_s: args.get(1).map_or(Ok(1.5), |s| s.parse())?,
             ..Default::default()
         };
         let out = std::path::PathBuf::from(args.get(2).map_or("pairs_out", String::as_str));
-        let s = roadtrack::sim::write_pairs(&config, &pairs, 0, &out, &mut |_, _| {})?;
+        let s = roadtrack_sim::write_pairs(&config, &pairs, 0, &out, &mut |_, _| {})?;
         println!("{s:?}");
         return Ok(());
     }
@@ -55,9 +55,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         view: args.get(1).map_or("aerial", String::as_str).parse()?,
         frames: args.get(2).map_or(Ok(100), |s| s.parse())?,
         image_format: if std::env::var_os("SIM_PNG").is_some() {
-            roadtrack::sim::ImageFormat::Png
+            roadtrack_sim::ImageFormat::Png
         } else {
-            roadtrack::sim::ImageFormat::Jpeg
+            roadtrack_sim::ImageFormat::Jpeg
         },
         ..SimConfig::default()
     };

@@ -3,7 +3,7 @@
 //! Each stage runs on a named input and reports frames (or items) per second of wall time.
 //! Timings are measurements, never test assertions.
 
-use crate::detector::{Detector, DetectorConfig};
+use crate::detect::background::{Detector, DetectorConfig};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::io::{SourceOptions, source};

@@ -46,7 +46,7 @@ pub struct Args {
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let mut points = roadtrack::io::read_track_points(&args.tracks, args.fps)?;
     let calibration = Calibration::load(&args.calibration)?;
-    roadtrack::tracking::attach_calibration(&mut points, &calibration, None, args.smooth_s)
+    roadtrack::analysis::ground::attach_calibration(&mut points, &calibration, None, args.smooth_s)
         .context("putting the tracks on the ground")?;
     let site: Site = match &args.zones {
         Some(p) => roadtrack::config::load_toml(p)?,

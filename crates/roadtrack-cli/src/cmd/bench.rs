@@ -3,7 +3,7 @@
 use crate::common::Ui;
 use anyhow::Result;
 use roadtrack::bench::{self, StageResult};
-use roadtrack::detector::DetectorConfig;
+use roadtrack::detect::background::DetectorConfig;
 use roadtrack::io::SourceOptions;
 use std::path::PathBuf;
 
@@ -66,7 +66,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         )?);
     }
     if want("simulate") {
-        use roadtrack::sim::{SceneKind, SimConfig, ViewKind};
+        use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
         for (scene, view, name) in [
             (SceneKind::Road, ViewKind::Aerial, "road aerial"),
             (
@@ -81,7 +81,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 view,
                 ..Default::default()
             };
-            let b = roadtrack::sim::benchmark(&cfg, 0, args.frames)?;
+            let b = roadtrack_sim::benchmark(&cfg, 0, args.frames)?;
             let label = format!("{name} {}×{}", b.size.0, b.size.1);
             results.push(StageResult::new(
                 "sim-render",
@@ -105,7 +105,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             .filter(|&n| n <= args.max_vehicles)
         {
             bar.set_message(format!("relaxation {n}"));
-            let r = roadtrack::relaxation::bench_scale(n, &Default::default(), 1)?;
+            let r = roadtrack::track::relaxation::bench_scale(n, &Default::default(), 1)?;
             results.push(StageResult::new(
                 "relaxation",
                 &format!("{n} vehicles, 0.3 m/px network"),
@@ -117,8 +117,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     }
     if want("mrf") {
         bar.set_message("mrf");
-        let cfg = roadtrack::mrf::MrfConfig::default();
-        let b = roadtrack::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
+        let cfg = roadtrack::track::mrf::MrfConfig::default();
+        let b = roadtrack::track::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
         results.push(StageResult::new(
             "mrf",
             "generated 640×480, 1 thread",
@@ -128,7 +128,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         ));
         if have_video {
             let (_, frames) = bench::load_frames(&args.video, 200)?;
-            let b = roadtrack::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
+            let b = roadtrack::track::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
             results.push(StageResult::new(
                 "mrf",
                 "vtest.avi 768×576, 1 thread",
@@ -140,7 +140,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     }
     if want("filters") {
         bar.set_message("filters");
-        let reports = roadtrack::filter::bench::bench_filters(&Default::default(), &mut |_, _| {})?;
+        let reports =
+            roadtrack::track::filter::bench::bench_filters(&Default::default(), &mut |_, _| {})?;
         for r in reports {
             results.push(StageResult::new(
                 "filter",
@@ -158,12 +159,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     #[cfg(feature = "cnn")]
     if want("cnn") {
         bar.set_message("cnn");
-        let ssd = roadtrack::cnn::ssd::default_model_path().filter(|p| p.is_file());
+        let ssd = roadtrack_cnn::ssd::default_model_path().filter(|p| p.is_file());
         if ssd.is_none() {
             ui.info("note: SSD model absent (scripts/setup.sh --models); skipping the SSD rows");
         }
-        let cfg = roadtrack::filter::bench::FilterBenchConfig::default();
-        let (stages, phd) = roadtrack::cnn::bench::bench_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})?;
+        let cfg = roadtrack::track::filter::bench::FilterBenchConfig::default();
+        let (stages, phd) = roadtrack_cnn::bench::bench_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})?;
         results.extend(stages);
         for r in phd {
             let stages = [

@@ -1,8 +1,8 @@
 //! `roadtrack demo`: the built-in example.
 
 use crate::common::Ui;
+use crate::demo::{DemoConfig, run_demo};
 use anyhow::Result;
-use roadtrack::demo::{DemoConfig, run_demo};
 use std::path::PathBuf;
 
 /// The built-in example: simulate an intersection with pedestrians, track it with every

@@ -2,7 +2,7 @@
 
 use crate::common::{FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
-use roadtrack::detector::{Detector, DetectorConfig};
+use roadtrack::detect::background::{Detector, DetectorConfig};
 use roadtrack::io::{detections::write_detections, source};
 use std::path::PathBuf;
 
@@ -85,7 +85,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             let mut img = frame.image.clone();
             for d in &dets {
                 if let Some(b) = d.bbox() {
-                    roadtrack::overlay::draw_box(&mut img, &b, roadtrack::overlay::id_colour(d.id));
+                    roadtrack_viz::overlay::draw_box(
+                        &mut img,
+                        &b,
+                        roadtrack_viz::overlay::id_colour(d.id),
+                    );
                 }
             }
             save_png(dir, frame.index, &img)?;

@@ -5,6 +5,16 @@
 use crate::common::{Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::calibration::Calibration;
+use roadtrack::eval::ospa::{OspaConfig, OspaStep, ospa_series};
+use roadtrack::eval::papers::{
+    DetectionTable, LabelledPoint, MatchRate, RmseConfig, RmseReport, SeparationBin,
+    correct_match_rate, detection_table, points_from_gt, points_from_tracks, separation_success,
+    trajectory_rmse,
+};
+use roadtrack::eval::{
+    ClassMode, EvalConfig, EvalReport, evaluate, evaluate_classified, format_table,
+    rows_from_points,
+};
 use roadtrack::geometry::Point;
 use roadtrack::io::mot::{MotGtRow, MotTrackRow, read_gt, read_tracks};
 use roadtrack::io::seqinfo::SeqInfo;
@@ -12,16 +22,6 @@ use roadtrack::io::{
     detections::read_detections, matches::read_matches, occlusion::read_occlusion,
     points::read_estimates, points::read_measurements, trajectories::read_trajectories,
     write_atomic,
-};
-use roadtrack::metrics::ospa::{OspaConfig, OspaStep, ospa_series};
-use roadtrack::metrics::papers::{
-    DetectionTable, LabelledPoint, MatchRate, RmseConfig, RmseReport, SeparationBin,
-    correct_match_rate, detection_table, points_from_gt, points_from_tracks, separation_success,
-    trajectory_rmse,
-};
-use roadtrack::metrics::{
-    ClassMode, EvalConfig, EvalReport, evaluate, evaluate_classified, format_table,
-    rows_from_points,
 };
 use serde_json::{Map, Value, json};
 use std::path::{Path, PathBuf};

@@ -4,8 +4,8 @@
 use super::matching::RelaxArgs;
 use crate::common::Ui;
 use anyhow::{Result, bail};
-use roadtrack::relaxation::experiment::problem_dirs;
-use roadtrack::relaxation::{DecisionRule, Method, Variant, run_experiment};
+use roadtrack::track::relaxation::experiment::problem_dirs;
+use roadtrack::track::relaxation::{DecisionRule, Method, Variant, run_experiment};
 use std::path::PathBuf;
 
 /// Score relaxation variants and baselines on folders of two-frame problems.

@@ -2,9 +2,9 @@
 
 use crate::common::{Ui, load_config};
 use anyhow::Result;
-use roadtrack::filter::Region;
-use roadtrack::filter::points::{PointFilterConfig, filter_points_with_progress};
 use roadtrack::io::points::{read_measurements, write_estimates};
+use roadtrack::track::filter::Region;
+use roadtrack::track::filter::points::{PointFilterConfig, filter_points_with_progress};
 use std::path::PathBuf;
 
 /// Run the labelled SMC-PHD filter on point measurements (`step,x,y`) with a Gaussian

@@ -4,7 +4,7 @@
 use crate::common::{Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::io::{detections::read_detections, matches::write_matches};
-use roadtrack::relaxation::{DecisionRule, RelaxationConfig, Variant, match_vehicles};
+use roadtrack::track::relaxation::{DecisionRule, RelaxationConfig, Variant, match_vehicles};
 use std::path::{Path, PathBuf};
 
 /// Every parameter of `RelaxationConfig` as a flag; each overrides `--config`.

@@ -3,7 +3,7 @@
 use crate::common::Ui;
 use anyhow::{Context, Result, bail};
 use roadtrack::io::{read_track_points, series::read_series, source};
-use roadtrack::plot::{Axis, PlotConfig, line_chart, plot_time_space, plot_trajectories};
+use roadtrack_viz::plot::{Axis, PlotConfig, line_chart, plot_time_space, plot_trajectories};
 use std::path::{Path, PathBuf};
 
 /// Plot trajectories (over a background frame, or as a time-space diagram), or a metric

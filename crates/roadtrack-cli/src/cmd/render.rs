@@ -3,7 +3,7 @@
 use crate::common::{FrameArgs, Ui};
 use anyhow::{Context, Result};
 use roadtrack::io::{read_track_points, read_truth_points, sink, source};
-use roadtrack::render::{ColourBy, RenderConfig, render_sequence};
+use roadtrack_viz::render::{ColourBy, RenderConfig, render_sequence};
 use std::path::PathBuf;
 
 /// Draw tracks over the frames: boxes, ids, class colours and fading trails.

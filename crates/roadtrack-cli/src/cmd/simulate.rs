@@ -1,8 +1,8 @@
-//! `roadtrack simulate`: synthetic traffic with ground truth (`roadtrack::sim`).
+//! `roadtrack simulate`: synthetic traffic with ground truth (`roadtrack_sim`).
 
 use crate::common::{Ui, load_config};
 use anyhow::{Context, Result};
-use roadtrack::sim::{self, ImageFormat, PairsConfig, SceneKind, SimConfig, ViewKind};
+use roadtrack_sim::{ImageFormat, PairsConfig, SceneKind, SimConfig, ViewKind};
 use std::path::PathBuf;
 
 /// Simulate traffic and write a MOTChallenge sequence folder with ground truth.
@@ -146,7 +146,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         };
         pairs.validate()?;
         let bar = ui.progress(Some(u64::from(pairs.n_pairs)), "pairs");
-        let s = sim::write_pairs(&config, &pairs, args.seed, out, &mut |d, _| {
+        let s = roadtrack_sim::write_pairs(&config, &pairs, args.seed, out, &mut |d, _| {
             bar.set_position(d)
         })
         .with_context(|| format!("writing pairs into {}", out.display()))?;
@@ -176,7 +176,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         bar.set_position(done);
     };
     let summary = match &args.from_trajectories {
-        Some(traj) => sim::simulate_from_trajectories(
+        Some(traj) => roadtrack_sim::simulate_from_trajectories(
             &config,
             args.seed,
             traj,
@@ -184,7 +184,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             out,
             &mut progress,
         )?,
-        None => sim::simulate(&config, args.seed, out, &mut progress)?,
+        None => roadtrack_sim::simulate(&config, args.seed, out, &mut progress)?,
     };
     bar.finish_and_clear();
     ui.info(format!(

@@ -3,9 +3,11 @@
 use super::matching::RelaxArgs;
 use crate::common::Ui;
 use anyhow::{Result, bail};
-use roadtrack::plot::{Series, line_chart};
-use roadtrack::relaxation::sweep::{Steps, SweepRow};
-use roadtrack::relaxation::{DecisionRule, RelaxationConfig, SweepGrid, UpdateWeights, sweep};
+use roadtrack::track::relaxation::sweep::{Steps, SweepRow};
+use roadtrack::track::relaxation::{
+    DecisionRule, RelaxationConfig, SweepGrid, UpdateWeights, sweep,
+};
+use roadtrack_viz::plot::{Series, line_chart};
 use std::path::PathBuf;
 
 /// Sweep the relaxation weights A, B, C over a folder of two-frame problems and report the

@@ -4,9 +4,9 @@ use crate::common::{FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::analysis::kinematics::GroundPoint;
 use roadtrack::calibration::Calibration;
-use roadtrack::detector::DetectorConfig;
+use roadtrack::detect::background::DetectorConfig;
 use roadtrack::io::{geojson, mot, trajectories};
-use roadtrack::track::TrackPoint;
+use roadtrack::track_point::TrackPoint;
 use std::path::PathBuf;
 
 /// Tracking methods (METHODS.md).
@@ -148,13 +148,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     };
     let mut points: Vec<TrackPoint> = match args.method {
         Method::Relaxation => {
-            let mut cfg: roadtrack::relaxation::tracker::TrackerConfig =
+            let mut cfg: roadtrack::track::relaxation::tracker::TrackerConfig =
                 load_config(args.config.as_deref())?;
             if let Some(k) = args.max_missed_frames {
                 cfg.max_missed_frames = k;
             }
             let det: DetectorConfig = load_config(args.detector_config.as_deref())?;
-            roadtrack::tracking::relaxation_track_source(
+            roadtrack::analysis::ground::relaxation_track_source(
                 &cfg,
                 &det,
                 &args.input,
@@ -163,24 +163,48 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             )?
         }
         Method::Mrf => {
-            let mut cfg: roadtrack::mrf::MrfConfig = load_config(args.config.as_deref())?;
+            let mut cfg: roadtrack::track::mrf::MrfConfig = load_config(args.config.as_deref())?;
             if let Some(v) = args.mrf_variant {
                 cfg.variant = match v {
-                    MrfVariant::Legacy => roadtrack::mrf::Variant::Legacy,
-                    MrfVariant::Improved => roadtrack::mrf::Variant::Improved,
+                    MrfVariant::Legacy => roadtrack::track::mrf::Variant::Legacy,
+                    MrfVariant::Improved => roadtrack::track::mrf::Variant::Improved,
                 };
             }
-            let opts = roadtrack::mrf::TrackOptions {
+            let opts = roadtrack::track::mrf::TrackOptions {
                 source: options.clone(),
                 seed: args.seed,
-                object_map_dir: args.object_maps.clone(),
             };
-            roadtrack::mrf::track_source(&cfg, &args.input, &opts, &mut progress)?
+            let mut dump = args
+                .object_maps
+                .as_deref()
+                .map(roadtrack_viz::object_map::MapDump::new);
+            let points = roadtrack::track::mrf::track_source(
+                &cfg,
+                &args.input,
+                &opts,
+                &mut |frame, tracker, points| match dump.as_mut() {
+                    Some(d) => {
+                        let map = tracker.object_map();
+                        let labels = roadtrack_viz::object_map::BlockLabels {
+                            cols: map.grid.cols,
+                            rows: map.grid.rows,
+                            block_px: roadtrack::track::mrf::object_map::BLOCK_PX,
+                            ids: &map.ids,
+                        };
+                        d.add(frame, &labels, points)
+                    }
+                    None => Ok(()),
+                },
+                &mut progress,
+            )?;
+            if let Some(d) = dump {
+                d.finish()?;
+            }
+            points
         }
         Method::Pf | Method::Phd => {
-            use roadtrack::filter::track::{
-                FilterMethod, FilterTrackConfig, ModelKind, ModelSpec, load_model_likelihood,
-                track_source_with_model,
+            use roadtrack::track::filter::track::{
+                FilterMethod, FilterTrackConfig, track_source_with_model,
             };
             let mut cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
             let method = if args.method == Method::Pf {
@@ -188,12 +212,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             } else {
                 FilterMethod::Phd
             };
-            let kind = match args.likelihood {
-                LikelihoodArg::Colour => ModelKind::Colour,
-                LikelihoodArg::Cnn => ModelKind::Cnn,
-                LikelihoodArg::Ssd => ModelKind::Ssd,
-            };
-            if kind == ModelKind::Colour {
+            if args.likelihood == LikelihoodArg::Colour {
                 if args.model.is_some() {
                     anyhow::bail!("--model needs --likelihood cnn or ssd");
                 }
@@ -205,13 +224,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 }
                 cfg.validate()?;
             }
-            let spec = ModelSpec {
-                kind,
-                path: args.model.clone(),
-                dense_stride_px: args.dense_stride,
-                window_scale: args.window_scale,
-            };
-            let model = load_model_likelihood(&spec)?;
+            let model = load_network(&args)?;
             track_source_with_model(
                 method,
                 &cfg,
@@ -230,7 +243,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             GroundPointArg::BottomCentre => GroundPoint::BottomCentre,
             GroundPointArg::Centre => GroundPoint::Centre,
         });
-        roadtrack::tracking::attach_calibration(&mut points, cal, gp, args.smooth_s)
+        roadtrack::analysis::ground::attach_calibration(&mut points, cal, gp, args.smooth_s)
             .context("putting the tracks on the ground")?;
     }
     mot::write_tracks(&args.output, &points)?;
@@ -252,4 +265,38 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         args.output.display()
     ));
     Ok(())
+}
+
+/// The network likelihood of `--likelihood cnn|ssd`; `None` for colour.
+#[cfg(feature = "cnn")]
+fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Likelihood>>> {
+    use roadtrack_cnn::model::{ModelKind, ModelSpec, load_model_likelihood};
+    let spec = ModelSpec {
+        kind: match args.likelihood {
+            LikelihoodArg::Colour => ModelKind::Colour,
+            LikelihoodArg::Cnn => ModelKind::Cnn,
+            LikelihoodArg::Ssd => ModelKind::Ssd,
+        },
+        path: args.model.clone(),
+        dense_stride_px: args.dense_stride,
+        window_scale: args.window_scale,
+    };
+    Ok(load_model_likelihood(&spec)?)
+}
+
+/// Without the `cnn` feature only the colour likelihood exists.
+#[cfg(not(feature = "cnn"))]
+fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Likelihood>>> {
+    match args.likelihood {
+        LikelihoodArg::Colour => Ok(None),
+        other => anyhow::bail!(
+            "the {} likelihood needs roadtrack built with the `cnn` feature \
+             (cargo build -p roadtrack-cli --features cnn)",
+            if other == LikelihoodArg::Cnn {
+                "cnn"
+            } else {
+                "ssd"
+            }
+        ),
+    }
 }

@@ -1,8 +1,11 @@
 //! `roadtrack train`: train the small CNN classifier used as a likelihood (METHODS.md §3).
 
 use crate::common::Ui;
-use anyhow::{Context, Result, bail};
-use roadtrack::cnn::train::{
+#[cfg(feature = "cnn")]
+use anyhow::Context;
+use anyhow::{Result, bail};
+#[cfg(feature = "cnn")]
+use roadtrack_cnn::train::{
     Preset, TrainConfig, patches_from_folders, patches_from_sequence, train,
 };
 use std::path::PathBuf;
@@ -74,6 +77,7 @@ pub enum PresetArg {
     Vehicle,
 }
 
+#[cfg(feature = "cnn")]
 fn parse_size(s: &str) -> Result<(usize, usize)> {
     let (h, w) = s
         .split_once(['x', 'X'])
@@ -81,11 +85,15 @@ fn parse_size(s: &str) -> Result<(usize, usize)> {
     Ok((h.trim().parse()?, w.trim().parse()?))
 }
 
+/// Without the `cnn` feature there is no trainer: fail before reading any data.
+#[cfg(not(feature = "cnn"))]
+pub fn run(args: Args, _ui: &Ui) -> Result<()> {
+    let _ = args;
+    bail!(NO_CNN)
+}
+
+#[cfg(feature = "cnn")]
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    if !cfg!(feature = "cnn") {
-        // Fail before training, not after it.
-        bail!(NO_CNN);
-    }
     let preset = match args.preset {
         PresetArg::Person => Preset::Person,
         PresetArg::Vehicle => Preset::Vehicle,
@@ -173,6 +181,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
 }
 
 /// The error of a build without the `cnn` feature.
+#[cfg(not(feature = "cnn"))]
 const NO_CNN: &str = "roadtrack was built without the `cnn` feature, which writes ONNX models \
                       (cargo build -p roadtrack-cli --features cnn)";
 
@@ -180,26 +189,14 @@ const NO_CNN: &str = "roadtrack was built without the `cnn` feature, which write
 #[cfg(feature = "cnn")]
 fn write_model(
     path: &std::path::Path,
-    net: &roadtrack::cnn::net::TinyCnn,
+    net: &roadtrack_cnn::net::TinyCnn,
     window_scale: Option<f64>,
 ) -> Result<()> {
-    roadtrack::cnn::export::write_onnx(
+    roadtrack_cnn::export::write_onnx(
         path,
         net,
-        &roadtrack::cnn::train::training_preprocessing(),
+        &roadtrack_cnn::train::training_preprocessing(),
         window_scale,
     )?;
     Ok(())
-}
-
-/// Without the `cnn` feature there is no ONNX writer.
-#[cfg(not(feature = "cnn"))]
-fn write_model(
-    _path: &std::path::Path,
-    _net: &roadtrack::cnn::net::TinyCnn,
-    _window_scale: Option<f64>,
-) -> Result<()> {
-    bail!(
-        "roadtrack was built without the `cnn` feature, which writes ONNX models (cargo build -p roadtrack-cli --features cnn)"
-    )
 }

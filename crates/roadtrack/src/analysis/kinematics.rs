@@ -9,7 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
-use crate::track::{GroundState, TrackPoint};
+use crate::track_point::{GroundState, TrackPoint};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 

@@ -6,12 +6,13 @@
 //! (`coordinates = "ground" | "image"`). Objects are the tracks' ids, optionally stitched
 //! across id switches (see [`stitch`]).
 
+pub mod ground;
 pub mod kinematics;
 
 use crate::class::ObjectClass;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
-use crate::track::TrackPoint;
+use crate::track_point::TrackPoint;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -609,7 +610,7 @@ pub fn analyze(points: &[TrackPoint], site: &Site) -> Result<Analysis> {
 mod tests {
     use super::*;
     use crate::geometry::BBox;
-    use crate::track::GroundState;
+    use crate::track_point::GroundState;
 
     /// A straight constant-velocity track starting at `from` in its first frame, 10 fps.
     fn track(

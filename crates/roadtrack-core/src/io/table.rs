@@ -1,0 +1,227 @@
+//! Shared reading of header-named CSV files with precise error positions.
+
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// A CSV file with a header row, read record by record.
+pub struct Table {
+    /// The file, for error messages.
+    pub path: PathBuf,
+    reader: csv::Reader<std::fs::File>,
+    columns: HashMap<String, usize>,
+}
+
+/// One record with its 1-based line number.
+pub struct Row<'t> {
+    table: &'t Table,
+    /// 1-based line number in the file.
+    pub line: u64,
+    record: csv::StringRecord,
+}
+
+impl Table {
+    /// Opens `path`; header names are trimmed and matched case-insensitively.
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(false)
+            .trim(csv::Trim::All)
+            .from_reader(file);
+        let headers = reader.headers().map_err(|e| csv_error(path, e))?.clone();
+        if headers.is_empty() || (headers.len() == 1 && headers[0].is_empty()) {
+            return Err(Error::format(path, "empty file: expected a header row"));
+        }
+        let mut columns = HashMap::new();
+        for (i, h) in headers.iter().enumerate() {
+            let key = h.trim_start_matches('\u{feff}').to_ascii_lowercase();
+            if columns.insert(key.clone(), i).is_some() {
+                return Err(Error::format(
+                    path,
+                    format!("column `{key}` appears twice in the header"),
+                ));
+            }
+        }
+        Ok(Self {
+            path: path.to_owned(),
+            reader,
+            columns,
+        })
+    }
+
+    /// Whether the header has `name`.
+    pub fn has(&self, name: &str) -> bool {
+        self.columns.contains_key(name)
+    }
+
+    /// Fails unless every name in `names` is in the header.
+    pub fn require(&self, names: &[&str]) -> Result<()> {
+        for n in names {
+            if !self.has(n) {
+                let mut found: Vec<_> = self.columns.iter().collect();
+                found.sort_by_key(|(_, i)| **i);
+                let found: Vec<_> = found.into_iter().map(|(k, _)| k.as_str()).collect();
+                return Err(Error::format(
+                    &self.path,
+                    format!(
+                        "missing required column `{n}` (header has: {})",
+                        found.join(",")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Calls `f` for every record.
+    pub fn for_each(mut self, mut f: impl FnMut(&Row<'_>) -> Result<()>) -> Result<()> {
+        let mut record = csv::StringRecord::new();
+        loop {
+            let more = self
+                .reader
+                .read_record(&mut record)
+                .map_err(|e| csv_error(&self.path, e))?;
+            if !more {
+                return Ok(());
+            }
+            if record.len() == 1 && record[0].is_empty() {
+                continue;
+            }
+            let line = record.position().map_or(0, |p| p.line());
+            let row = Row {
+                table: &self,
+                line,
+                record: std::mem::take(&mut record),
+            };
+            f(&row)?;
+            record = row.record;
+        }
+    }
+}
+
+impl Row<'_> {
+    fn raw(&self, name: &str) -> Option<&str> {
+        self.table
+            .columns
+            .get(name)
+            .and_then(|&i| self.record.get(i))
+    }
+
+    /// An error at this row, column `name`.
+    pub fn error(&self, name: &str, message: impl Into<String>) -> Error {
+        Error::parse(&self.table.path, self.line, name, message)
+    }
+
+    /// A finite number in column `name`, which must be present and non-empty.
+    pub fn f64(&self, name: &str) -> Result<f64> {
+        self.opt_f64(name)?
+            .ok_or_else(|| self.error(name, "empty value where a number is required"))
+    }
+
+    /// A finite number in column `name`, or `None` when the column is absent or empty.
+    pub fn opt_f64(&self, name: &str) -> Result<Option<f64>> {
+        match self.raw(name) {
+            None | Some("") => Ok(None),
+            Some(s) => match s.parse::<f64>() {
+                Ok(x) if x.is_finite() => Ok(Some(x)),
+                Ok(_) => Err(self.error(name, format!("not a finite number: {s:?}"))),
+                Err(_) => Err(self.error(name, format!("not a number: {s:?}"))),
+            },
+        }
+    }
+
+    /// A non-negative integer in column `name`, or `None` when absent or empty.
+    pub fn opt_u64(&self, name: &str) -> Result<Option<u64>> {
+        match self.raw(name) {
+            None | Some("") => Ok(None),
+            Some(s) => s
+                .parse::<u64>()
+                .map(Some)
+                .map_err(|_| self.error(name, format!("not a non-negative integer: {s:?}"))),
+        }
+    }
+
+    /// The text in column `name`, or `None` when absent or empty.
+    pub fn opt_str(&self, name: &str) -> Option<&str> {
+        self.raw(name).filter(|s| !s.is_empty())
+    }
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> Error {
+    let line = e.position().map_or(0, |p| p.line());
+    match e.kind() {
+        csv::ErrorKind::Io(_) => Error::format(path, e.to_string()),
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => Error::parse(
+            path,
+            line,
+            "-",
+            format!("row has {len} fields, header has {expected_len}"),
+        ),
+        _ => Error::parse(path, line, "-", e.to_string()),
+    }
+}
+
+/// `str::trim`, skipped when both ends are visible ASCII (the usual case).
+pub fn trim(s: &str) -> &str {
+    match s.as_bytes() {
+        [a, .., z] if a.is_ascii_graphic() && z.is_ascii_graphic() => s,
+        [a] if a.is_ascii_graphic() => s,
+        _ => s.trim(),
+    }
+}
+
+/// Parses one number of a header-less, comma-separated line (MOTChallenge files).
+pub fn field_f64(path: &Path, line: u64, fields: &[&str], i: usize, name: &str) -> Result<f64> {
+    let s = fields.get(i).ok_or_else(|| {
+        Error::parse(
+            path,
+            line,
+            name,
+            format!("missing: the line has {} fields", fields.len()),
+        )
+    })?;
+    let s = trim(s);
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        Ok(_) => Err(Error::parse(
+            path,
+            line,
+            name,
+            format!("not a finite number: {s:?}"),
+        )),
+        Err(_) => Err(Error::parse(
+            path,
+            line,
+            name,
+            format!("not a number: {s:?}"),
+        )),
+    }
+}
+
+/// Formats `x` with at most `decimals` decimals and no trailing zeros (`12.5`, `3`).
+pub fn num(x: f64, decimals: usize) -> String {
+    let s = format!("{x:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    };
+    if s == "-0" { "0".to_owned() } else { s }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::num;
+
+    #[test]
+    fn numbers_are_short_and_exact_to_the_decimals() {
+        assert_eq!(num(12.5, 3), "12.5");
+        assert_eq!(num(3.0, 3), "3");
+        assert_eq!(num(-0.0001, 3), "0");
+        assert_eq!(num(1.23456, 3), "1.235");
+        assert_eq!(num(100.0, 0), "100");
+    }
+}

@@ -1,0 +1,5 @@
+//! The tracking methods.
+
+pub mod filter;
+pub mod mrf;
+pub mod relaxation;

@@ -1,0 +1,282 @@
+//! Relaxation as a tracker (issue 5 item 3): the two-frame matching of METHODS.md §1 run
+//! between every frame and the tracks alive before it, chained into tracks with stable ids.
+//!
+//! The paper matches two frames only; everything here beyond that is a choice:
+//! - Choice: frame 1 of each matching is the set of live tracks, each placed where it is
+//!   expected one frame before the current one (last position plus its last per-frame
+//!   displacement times the frames it was missing), with its last colour. A vehicle missed
+//!   for a few frames then shows the same displacement as its neighbours, which is what the
+//!   relaxation rewards.
+//! - Choice: a track missing for up to `max_missed_frames` frames stays alive and keeps its
+//!   id when it is matched again; after that it ends.
+//! - Choice: when the argmax sends two tracks to one detection, the detection goes to the
+//!   more probable claim (ties: the older track) and the other track counts as missed.
+//! - Choice: a detection no track claimed starts a new track; ids count up from 1.
+//!
+//! Note: with the paper's `A = 0.5`, a vehicle without neighbours within `R` loses its real
+//! labels to the no-match label (nothing reinforces them, eq. 19), so isolated vehicles
+//! start a new track each frame; `own_weight = 1` keeps the colour start's decision for
+//! them. The paper's value stays the default.
+
+use super::{RelaxationConfig, match_vehicles};
+use crate::class::ObjectClass;
+use crate::detection::Detection;
+use crate::error::Result;
+use crate::geometry::{BBox, Point};
+use crate::track_point::TrackPoint;
+use serde::{Deserialize, Serialize};
+
+/// Parameters of the relaxation tracker.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackerConfig {
+    /// The two-frame matcher (METHODS.md §1; the paper's defaults).
+    pub relaxation: RelaxationConfig,
+    /// `k`: frames a track may go unmatched and still keep its id. Default 3 (paper
+    /// silent; about 2 s at 1.5 s per frame would be 1, at 10 fps 0.3 s).
+    pub max_missed_frames: u32,
+    /// Side of the box written for detections without a size, px. Default 15 (a car at
+    /// 0.3 m/px; paper silent).
+    pub fallback_box_px: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            relaxation: RelaxationConfig::default(),
+            max_missed_frames: 3,
+            fallback_box_px: 15.0,
+        }
+    }
+}
+
+impl TrackerConfig {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidConfig`] naming the field.
+    pub fn validate(&self) -> Result<()> {
+        self.relaxation.validate()?;
+        if !(self.fallback_box_px.is_finite() && self.fallback_box_px >= 0.0) {
+            return Err(crate::Error::config(
+                "TrackerConfig",
+                "fallback_box_px",
+                "must be finite and non-negative",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    id: u64,
+    pos: Point,
+    /// Displacement per frame at the last match.
+    velocity: [f64; 2],
+    colour: Option<[f64; 3]>,
+    last_frame: u32,
+}
+
+/// Chains relaxation matchings of consecutive frames into tracks.
+#[derive(Debug, Clone)]
+pub struct RelaxationTracker {
+    config: TrackerConfig,
+    tracks: Vec<Track>,
+    next_id: u64,
+}
+
+impl RelaxationTracker {
+    /// A tracker with no tracks yet.
+    ///
+    /// # Errors
+    /// An invalid configuration.
+    pub fn new(config: TrackerConfig) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            tracks: Vec::new(),
+            next_id: 1,
+        })
+    }
+
+    /// Number of live tracks (matched recently enough to be matched again).
+    pub fn live_tracks(&self) -> usize {
+        self.tracks.len()
+    }
+
+    /// Processes the detections of frame `frame` (1-based, increasing) taken at `time_s`;
+    /// returns one track point per detection, in input order.
+    ///
+    /// # Errors
+    /// Frames out of order, or detections the matcher rejects (duplicate ids, missing
+    /// colour under a colour variant, non-finite values).
+    pub fn step(
+        &mut self,
+        frame: u32,
+        time_s: f64,
+        detections: &[Detection],
+    ) -> Result<Vec<TrackPoint>> {
+        if let Some(t) = self.tracks.iter().find(|t| t.last_frame >= frame) {
+            return Err(crate::Error::Invalid(format!(
+                "frame {frame} after frame {}: frames must increase",
+                t.last_frame
+            )));
+        }
+        let previous: Vec<Detection> = self
+            .tracks
+            .iter()
+            .enumerate()
+            .map(|(n, t)| {
+                let missed = f64::from(frame - t.last_frame - 1);
+                let pos = Point::new(
+                    t.pos.x + t.velocity[0] * missed,
+                    t.pos.y + t.velocity[1] * missed,
+                );
+                Detection {
+                    colour_rgb: t.colour,
+                    ..Detection::at(frame.saturating_sub(1).max(1), n as u64, pos)
+                }
+            })
+            .collect();
+        let matching = match_vehicles(&previous, detections, &self.config.relaxation)
+            .map_err(|e| crate::Error::Invalid(format!("frame {frame}: {e}")))?;
+        // Resolve many-to-one claims: best probability, then older track.
+        let mut owner: Vec<Option<usize>> = vec![None; detections.len()];
+        for (n, k) in matching.partner.iter().enumerate() {
+            if let Some(k) = *k {
+                let better = match owner[k] {
+                    None => true,
+                    Some(o) => matching.probability[n] > matching.probability[o],
+                };
+                if better {
+                    owner[k] = Some(n);
+                }
+            }
+        }
+        let mut points = Vec::with_capacity(detections.len());
+        for (k, d) in detections.iter().enumerate() {
+            let id = match owner[k] {
+                Some(n) => {
+                    let t = &mut self.tracks[n];
+                    let gap = f64::from(frame - t.last_frame);
+                    t.velocity = [(d.pos_px.x - t.pos.x) / gap, (d.pos_px.y - t.pos.y) / gap];
+                    t.pos = d.pos_px;
+                    t.colour = d.colour_rgb.or(t.colour);
+                    t.last_frame = frame;
+                    t.id
+                }
+                None => {
+                    let id = self.next_id;
+                    self.next_id += 1;
+                    self.tracks.push(Track {
+                        id,
+                        pos: d.pos_px,
+                        velocity: [0.0, 0.0],
+                        colour: d.colour_rgb,
+                        last_frame: frame,
+                    });
+                    id
+                }
+            };
+            let bbox = d.bbox().unwrap_or_else(|| {
+                let s = self.config.fallback_box_px;
+                BBox::from_centre(d.pos_px, s, s)
+            });
+            points.push(TrackPoint {
+                frame,
+                time_s,
+                id,
+                class: d.class.clone().unwrap_or(ObjectClass::Unknown),
+                bbox,
+                score: d.score.unwrap_or(1.0),
+                ground: None,
+            });
+        }
+        let k = self.config.max_missed_frames;
+        self.tracks.retain(|t| frame - t.last_frame <= k);
+        Ok(points)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A platoon of `n` cars 60 px apart moving 25 px per frame, distinct colours.
+    fn platoon(frame: u32, n: u64, skip: &[u64]) -> Vec<Detection> {
+        (0..n)
+            .filter(|i| !skip.contains(i))
+            .map(|i| Detection {
+                colour_rgb: Some([(i * 40 % 256) as f64, 100.0, (255 - i * 30 % 256) as f64]),
+                ..Detection::at(
+                    frame,
+                    100 + i,
+                    Point::new(
+                        i as f64 * 60.0 + 25.0 * f64::from(frame),
+                        50.0 + (i % 2) as f64 * 12.0,
+                    ),
+                )
+            })
+            .collect()
+    }
+
+    fn ids_by_detection(points: &[TrackPoint]) -> Vec<u64> {
+        points.iter().map(|p| p.id).collect()
+    }
+
+    #[test]
+    fn tracks_keep_their_ids_and_survive_short_gaps() -> Result<()> {
+        let mut t = RelaxationTracker::new(TrackerConfig::default())?;
+        let first = ids_by_detection(&t.step(1, 0.0, &platoon(1, 6, &[]))?);
+        assert_eq!(first, vec![1, 2, 3, 4, 5, 6]);
+        assert_eq!(
+            ids_by_detection(&t.step(2, 0.1, &platoon(2, 6, &[]))?),
+            first
+        );
+        // Car 3 (id 4) is missing for two frames (k = 3 allows it), then returns where its
+        // last displacement (25 px per frame) predicts.
+        let gap = ids_by_detection(&t.step(3, 0.2, &platoon(3, 6, &[3]))?);
+        assert_eq!(gap, vec![1, 2, 3, 5, 6]);
+        t.step(4, 0.3, &platoon(4, 6, &[3]))?;
+        let back = ids_by_detection(&t.step(5, 0.4, &platoon(5, 6, &[]))?);
+        assert_eq!(back, vec![1, 2, 3, 4, 5, 6]);
+        Ok(())
+    }
+
+    #[test]
+    fn a_track_missing_longer_than_k_frames_gets_a_new_id() -> Result<()> {
+        let cfg = TrackerConfig {
+            max_missed_frames: 1,
+            ..Default::default()
+        };
+        let mut t = RelaxationTracker::new(cfg)?;
+        t.step(1, 0.0, &platoon(1, 6, &[]))?;
+        t.step(2, 0.1, &platoon(2, 6, &[]))?;
+        t.step(3, 0.2, &platoon(3, 6, &[3]))?;
+        t.step(4, 0.3, &platoon(4, 6, &[3]))?;
+        let back = ids_by_detection(&t.step(5, 0.4, &platoon(5, 6, &[]))?);
+        assert_eq!(back, vec![1, 2, 3, 7, 5, 6]);
+        Ok(())
+    }
+
+    #[test]
+    fn boxes_fall_back_to_a_square_and_frames_must_increase() -> Result<()> {
+        let mut t = RelaxationTracker::new(TrackerConfig::default())?;
+        let p = t.step(1, 0.0, &platoon(1, 2, &[]))?;
+        assert_eq!(
+            p[0].bbox,
+            BBox::from_centre(Point::new(25.0, 50.0), 15.0, 15.0)
+        );
+        assert_eq!(p[0].class, ObjectClass::Unknown);
+        let m = t
+            .step(1, 0.0, &platoon(1, 2, &[]))
+            .expect_err("same frame")
+            .to_string();
+        assert!(m.contains("frames must increase"), "{m}");
+        // An empty frame is fine: every track is missed.
+        assert!(t.step(2, 0.1, &[])?.is_empty());
+        assert_eq!(t.live_tracks(), 2);
+        Ok(())
+    }
+}
