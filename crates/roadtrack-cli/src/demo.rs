@@ -2,14 +2,19 @@
 //! pedestrians, runs every tracking method on it, evaluates each against the simulator's
 //! ground truth, and writes overlays, plots, a traffic analysis and a one-page report.
 
+use crate::overlay::OverlaySink;
+use roadtrack::analysis::ground::GroundStage;
 use roadtrack::analysis::{self, Coordinates, CountLine, Site, StitchConfig, Zone};
 use roadtrack::calibration::Calibration;
 use roadtrack::error::{Error, Result};
 use roadtrack::eval::{self, ClassMode, EvalConfig};
-use roadtrack::io::{self, SourceOptions, mot, sink, source, trajectories};
+use roadtrack::io::{self, SourceOptions, mot, sink, source};
+use roadtrack::track::pipeline::{MotSink, TrajectoriesSink};
+use roadtrack::track::replay::ReplayTracker;
+use roadtrack::track::{Method, MethodConfig, Pipeline, track_source};
 use roadtrack::track_point::TrackPoint;
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
-use roadtrack_viz::render::{RenderConfig, render_sequence};
+use roadtrack_viz::render::RenderConfig;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -67,83 +72,9 @@ pub struct DemoReport {
     pub methods: Vec<MethodResult>,
 }
 
-/// A sink that keeps only the last frame.
-struct LastFrame(Option<image::RgbImage>);
-
-impl sink::FrameSink for LastFrame {
-    fn write_frame(&mut self, _index: u32, image: &image::RgbImage) -> Result<()> {
-        self.0 = Some(image.clone());
-        Ok(())
-    }
-    fn finish(&mut self) -> Result<()> {
-        Ok(())
-    }
-}
-
-/// One tracking method the demo runs: name and how to run it on a sequence folder.
-type Runner = fn(&Path, u64) -> Result<Vec<TrackPoint>>;
-
-fn run_relaxation(seq: &Path, _seed: u64) -> Result<Vec<TrackPoint>> {
-    roadtrack::analysis::ground::relaxation_track_source(
-        &Default::default(),
-        &Default::default(),
-        seq,
-        &SourceOptions::default(),
-        &mut |_, _| {},
-    )
-}
-
-fn run_mrf(seq: &Path, seed: u64) -> Result<Vec<TrackPoint>> {
-    let opts = roadtrack::track::mrf::TrackOptions {
-        source: SourceOptions::default(),
-        seed,
-    };
-    roadtrack::track::mrf::track_source(
-        &Default::default(),
-        seq,
-        &opts,
-        &mut |_, _, _| Ok(()),
-        &mut |_, _| {},
-    )
-}
-
-/// The methods the demo compares.
-pub fn methods() -> Vec<(&'static str, Runner)> {
-    vec![
-        ("relaxation", run_relaxation as Runner),
-        ("mrf", run_mrf as Runner),
-        ("pf", run_pf as Runner),
-        ("phd", run_phd as Runner),
-    ]
-}
-
-fn run_filter(
-    method: roadtrack::track::filter::track::FilterMethod,
-    seq: &Path,
-    seed: u64,
-) -> Result<Vec<TrackPoint>> {
-    let cfg = roadtrack::track::filter::track::FilterTrackConfig::default();
-    let out = roadtrack::track::filter::track::track_source(
-        method,
-        &cfg,
-        seq,
-        &SourceOptions::default(),
-        seed,
-        &mut |_, _| {},
-    )?;
-    Ok(out.points)
-}
-
-fn run_pf(seq: &Path, seed: u64) -> Result<Vec<TrackPoint>> {
-    run_filter(roadtrack::track::filter::track::FilterMethod::Pf, seq, seed)
-}
-
-fn run_phd(seq: &Path, seed: u64) -> Result<Vec<TrackPoint>> {
-    run_filter(
-        roadtrack::track::filter::track::FilterMethod::Phd,
-        seq,
-        seed,
-    )
+/// The methods the demo compares, in the papers' order.
+pub fn methods() -> [Method; 4] {
+    Method::ALL
 }
 
 /// The intersection's approach arms and a counting line per arm, in ground metres
@@ -226,15 +157,28 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
     };
     let mut results = Vec::new();
     let mut sections = String::new();
-    for (name, run) in methods() {
+    for method in methods() {
+        let name = method.name();
         step(&format!("tracking with {name}"));
         let mdir = dir.join(name);
         let t0 = std::time::Instant::now();
-        let mut points = run(&seq, cfg.seed)?;
+        let mut points: Vec<TrackPoint> = Vec::new();
+        track_source(
+            &seq,
+            &SourceOptions::default(),
+            MethodConfig::defaults(method, cfg.seed),
+            vec![Box::new(GroundStage::new(&calibration, None, 0.5)?)],
+            vec![
+                Box::new(MotSink::create(&mdir.join("tracks.txt"))?),
+                Box::new(TrajectoriesSink::create(
+                    &mdir.join("trajectories.csv"),
+                    true,
+                )?),
+                Box::new(&mut points),
+            ],
+            &mut |_, _| {},
+        )?;
         let seconds = t0.elapsed().as_secs_f64();
-        roadtrack::analysis::ground::attach_calibration(&mut points, &calibration, None, 0.5)?;
-        mot::write_tracks(&mdir.join("tracks.txt"), &points)?;
-        trajectories::write_trajectories(&mdir.join("trajectories.csv"), &points)?;
         let (rows, _) = eval::rows_from_points(&points);
         let report = eval::evaluate(&gt, &rows, &eval_cfg)?;
         roadtrack::io::atomic::write_bytes_atomic(
@@ -263,35 +207,22 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         } else {
             mdir.join("overlay")
         };
-        let mut out = sink::open_sink(&overlay, fps)?;
-        render_sequence(
+        // The overlay, and a still of the middle frame with the trails built up to it.
+        let mut sink = OverlaySink::new(
+            &RenderConfig::default(),
+            Some(&truth),
+            sink::open_sink(&overlay, fps)?,
+        )?;
+        sink.keep_still(cfg.frames / 2);
+        let mut render = Pipeline::new(Box::new(ReplayTracker::new(points.clone())));
+        render.sinks.push(Box::new(&mut sink));
+        render.run(
             source::open(&seq, &SourceOptions::default())?,
-            &points,
-            Some(&truth),
-            &RenderConfig::default(),
-            out.as_mut(),
-            |_| {},
+            None,
+            &mut |_, _| {},
         )?;
-        out.finish()?;
-        // A still of the middle frame, with the trails built up to it.
-        let mid = cfg.frames / 2;
-        let upto = source::open(
-            &seq,
-            &SourceOptions {
-                end: Some(mid),
-                ..Default::default()
-            },
-        )?;
-        let mut last = LastFrame(None);
-        render_sequence(
-            upto,
-            &points,
-            Some(&truth),
-            &RenderConfig::default(),
-            &mut last,
-            |_| {},
-        )?;
-        if let Some(img) = last.0 {
+        drop(render);
+        if let Some(img) = sink.take_still() {
             let still = mdir.join("overlay_frame.png");
             roadtrack::io::atomic::write_bytes_atomic(&still, &sink::encode_png(&img, &still)?)?;
         }

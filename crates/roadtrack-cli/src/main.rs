@@ -4,6 +4,7 @@
 mod cmd;
 mod common;
 mod demo;
+mod overlay;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

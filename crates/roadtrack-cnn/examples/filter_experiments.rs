@@ -16,17 +16,21 @@
 
 use roadtrack::calibration::Calibration;
 use roadtrack::class::ObjectClass;
-use roadtrack::detect::background::Detector;
+use roadtrack::detect::background::BackgroundDetector;
+use roadtrack::detection::Detection;
 use roadtrack::eval::papers::{
     DetectionTable, LabelledPoint, RmseConfig, detection_table, trajectory_rmse,
 };
 use roadtrack::eval::{ClassMode, EvalConfig, evaluate, rows_from_points};
+use roadtrack::frame::Frame;
 use roadtrack::geometry::Point;
 use roadtrack::io::source::{self, SourceOptions};
+use roadtrack::likelihood::Likelihood;
+use roadtrack::track::filter::config::LikelihoodKind;
 use roadtrack::track::filter::motion::ConstantVelocity;
-use roadtrack::track::filter::track::{
-    FilterMethod, FilterTrackConfig, FilterTrackOutput, LikelihoodKind, track_frames,
-};
+use roadtrack::track::filter::phd::StageTimes;
+use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, FilterTracker, FrameCount};
+use roadtrack::track::pipeline::run_frames;
 use roadtrack::track_point::TrackPoint;
 use roadtrack_sim::{SceneKind, SimConfig, Simulation, TruthRow, ViewKind, gt_rows};
 use serde::Serialize;
@@ -193,11 +197,52 @@ fn foot_points(points: &[TrackPoint], aerial: bool) -> Vec<LabelledPoint> {
         .collect()
 }
 
+/// What one filter run produced.
+struct FilterRun {
+    points: Vec<TrackPoint>,
+    counts: Vec<FrameCount>,
+    detections: Vec<Detection>,
+    stage_times: StageTimes,
+    detect_s: f64,
+    window_px: Option<(u32, u32)>,
+}
+
+/// Runs `method` over `frames` through the tracking pipeline, timing the detector and
+/// keeping its detections and the filter's per-frame counts.
+fn run_filter(
+    method: FilterMethod,
+    cfg: &FilterTrackConfig,
+    mut detector: BackgroundDetector,
+    frames: impl Iterator<Item = roadtrack::Result<Frame>>,
+    seed: u64,
+    model: Option<Box<dyn Likelihood>>,
+) -> Res<FilterRun> {
+    let (mut detections, mut detect_s) = (Vec::new(), 0.0);
+    let timed = |f: &Frame| {
+        let t0 = Instant::now();
+        let found = detector.detect_with_mask(f)?;
+        detect_s += t0.elapsed().as_secs_f64();
+        detections.extend(found.detections.iter().cloned());
+        Ok(found)
+    };
+    let mut tracker = FilterTracker::new(method, cfg, seed, model)?;
+    tracker.record_counts();
+    let points = run_frames(Some(Box::new(timed)), Box::new(&mut tracker), frames)?;
+    Ok(FilterRun {
+        points,
+        counts: tracker.counts().to_vec(),
+        detections,
+        stage_times: tracker.stage_times(),
+        detect_s,
+        window_px: tracker.window_px(),
+    })
+}
+
 fn run_one(setting: &Setting, seed: u64, method: FilterMethod, kind: LikelihoodKind) -> Res<Run> {
     let cfg = track_config(setting.pedestrians, kind);
     let n = setting.sim.frames;
     let boot = Simulation::new(&setting.sim, seed)?.map(|s| s.map(|s| s.frame));
-    let detector = Detector::bootstrap(cfg.detector.clone(), boot, Some(n))?;
+    let detector = BackgroundDetector::bootstrap(cfg.detector.clone(), boot, Some(n))?;
     let sim = Simulation::new(&setting.sim, seed)?;
     let calibration: Calibration = sim.calibration().clone();
     let mut truth: Vec<TruthRow> = Vec::new();
@@ -208,15 +253,7 @@ fn run_one(setting: &Setting, seed: u64, method: FilterMethod, kind: LikelihoodK
         })
     });
     let t0 = Instant::now();
-    let out: FilterTrackOutput = track_frames(
-        method,
-        &cfg,
-        detector,
-        frames,
-        Some(u64::from(n)),
-        seed,
-        &mut |_, _| {},
-    )?;
+    let out = run_filter(method, &cfg, detector, frames, seed, None)?;
     let _ = t0;
     // Only objects a foreground detector can see count as truth: at least 30 % visible
     // (the simulator's own detector's rule) and at least the detector's smallest region.
@@ -478,14 +515,14 @@ fn vtest(video: &Path, out: &Path, frames: Option<u32>) -> Res<()> {
         None
     };
     let t0 = Instant::now();
-    let run = roadtrack::track::filter::track::track_source_with_model(
+    let detector = BackgroundDetector::bootstrap_source(cfg.detector.clone(), video, &options)?;
+    let run = run_filter(
         FilterMethod::Phd,
         &cfg,
-        video,
-        &options,
+        detector,
+        source::open(video, &options)?,
         1,
         model,
-        &mut |_, _| {},
     )?;
     let wall = t0.elapsed().as_secs_f64();
     let n = run.counts.len().max(1) as f64;
@@ -504,9 +541,7 @@ fn vtest(video: &Path, out: &Path, frames: Option<u32>) -> Res<()> {
         ));
     }
     roadtrack::io::write_atomic(&out.join("counts.csv"), |w| w.write_all(csv.as_bytes()))?;
-    let mean = |f: &dyn Fn(&roadtrack::track::filter::track::FrameCount) -> f64| {
-        run.counts.iter().map(f).sum::<f64>() / n
-    };
+    let mean = |f: &dyn Fn(&FrameCount) -> f64| run.counts.iter().map(f).sum::<f64>() / n;
     eprintln!(
         "mean expected count {:.2}, reported {:.2}, detections {:.2}; {} track ids",
         mean(&|c| c.expected),

@@ -129,13 +129,12 @@ pub fn load_model_likelihood(spec: &ModelSpec) -> Result<Option<Box<dyn Likeliho
 mod tests {
     use super::*;
     use roadtrack::class::ObjectClass;
-    use roadtrack::detect::background::Detector;
+    use roadtrack::detect::background::BackgroundDetector;
     use roadtrack::frame::Frame;
     use roadtrack::io::SourceOptions;
-    use roadtrack::track::filter::track::{
-        FilterMethod, FilterTrackConfig, FilterTrackOutput, track_frames_with_model,
-        track_source_with_model,
-    };
+    use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, FilterTracker, FrameCount};
+    use roadtrack::track::pipeline::run_frames;
+    use roadtrack::track_point::TrackPoint;
     use roadtrack_sim::external::{ExternalTrajectories, TrajectorySample};
     use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
     use std::path::Path;
@@ -205,7 +204,9 @@ mod tests {
             "/tests/fixtures/tiny_classifier.onnx"
         );
         let cfg = FilterTrackConfig::default();
-        let run_with = |threads: usize, stride: u32| -> Result<FilterTrackOutput> {
+        let run_with = |threads: usize,
+                        stride: u32|
+         -> Result<(Vec<TrackPoint>, Vec<FrameCount>)> {
             let spec = ModelSpec {
                 kind: ModelKind::Cnn,
                 path: Some(PathBuf::from(model)),
@@ -217,29 +218,28 @@ mod tests {
                 .build()
                 .map_err(|e| Error::Invalid(e.to_string()))?;
             pool.install(|| {
-                let detector = Detector::bootstrap(
+                let detector = BackgroundDetector::bootstrap(
                     cfg.detector.clone(),
                     frames.iter().cloned().map(Ok),
                     Some(frames.len() as u32),
                 )?;
-                track_frames_with_model(
-                    FilterMethod::Phd,
-                    &cfg,
-                    detector,
+                let mut tracker =
+                    FilterTracker::new(FilterMethod::Phd, &cfg, 3, load_model_likelihood(&spec)?)?;
+                tracker.record_counts();
+                let points = run_frames(
+                    Some(Box::new(detector)),
+                    Box::new(&mut tracker),
                     frames.iter().cloned().map(Ok),
-                    None,
-                    3,
-                    load_model_likelihood(&spec)?,
-                    &mut |_, _| {},
-                )
+                )?;
+                Ok((points, tracker.counts().to_vec()))
             })
         };
         for stride in [0, 8] {
             let one = run_with(1, stride)?;
             let two = run_with(2, stride)?;
-            assert_eq!(one.points, two.points, "stride {stride}");
-            assert_eq!(one.counts.len(), frames.len());
-            assert!(one.counts.iter().all(|c| c.expected.is_finite()));
+            assert_eq!(one.0, two.0, "stride {stride}");
+            assert_eq!(one.1.len(), frames.len());
+            assert!(one.1.iter().all(|c| c.expected.is_finite()));
         }
         Ok(())
     }
@@ -268,24 +268,39 @@ mod tests {
             end: Some(40),
             ..Default::default()
         };
-        let out = track_source_with_model(
-            FilterMethod::Phd,
-            &FilterTrackConfig::default(),
+        let built = roadtrack::track::MethodConfig::Filter {
+            method: FilterMethod::Phd,
+            config: Box::default(),
+            model: None,
+            seed: 0,
+        }
+        .build(
             video,
             &options,
+            &roadtrack::io::source::open(video, &options)?.info,
+        )?;
+        let mut tracker = FilterTracker::new(
+            FilterMethod::Phd,
+            &FilterTrackConfig::default(),
             0,
             load_model_likelihood(&spec)?,
-            &mut |_, _| {},
         )?;
-        assert_eq!(out.counts.len(), 40);
+        tracker.record_counts();
+        let points = run_frames(
+            built.detector,
+            Box::new(&mut tracker),
+            roadtrack::io::source::open(video, &options)?,
+        )?;
+        let counts = tracker.counts();
+        assert_eq!(counts.len(), 40);
         // vtest shows several pedestrians from the first frame on.
-        let late: Vec<f64> = out.counts[20..].iter().map(|c| c.expected).collect();
+        let late: Vec<f64> = counts[20..].iter().map(|c| c.expected).collect();
         let mean = late.iter().sum::<f64>() / late.len() as f64;
         assert!(
             mean > 1.0,
             "mean expected count {mean:.2} over frames 21–40"
         );
-        assert!(!out.points.is_empty());
+        assert!(!points.is_empty());
         Ok(())
     }
 }

@@ -14,8 +14,8 @@
 //! Drawing is integer arithmetic on a deterministic order (ids ascending), so the same
 //! frames and points give byte-identical images.
 //!
-//! [`render_sequence`] runs a renderer (two, with ground truth) over a frame source and
-//! hands the images to a [`FrameSink`]: a PNG folder or a video file.
+//! The command line runs renderers inside the tracking pipeline (its overlay sink), one
+//! for the tracks and one for the ground truth beside them ([`side_by_side`]).
 
 use crate::overlay::{
     class_colour, draw_box, draw_dot, draw_faded_polyline, draw_label, font, id_colour,
@@ -27,7 +27,6 @@ use roadtrack_core::ObjectClass;
 use roadtrack_core::error::{Error, Result};
 use roadtrack_core::frame::Frame;
 use roadtrack_core::geometry::Point;
-use roadtrack_core::io::sink::FrameSink;
 use roadtrack_core::track_point::TrackPoint;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, VecDeque};
@@ -297,43 +296,6 @@ pub fn group_by_frame(points: &[TrackPoint]) -> BTreeMap<u32, Vec<TrackPoint>> {
     out
 }
 
-/// Renders every frame of `frames` with `tracks` (and `truth` side by side, tracks left)
-/// into `sink`, calling `progress` with each frame number after it is written. Returns the
-/// number of frames written. Does not call [`FrameSink::finish`].
-///
-/// # Errors
-/// A frame that cannot be read, or a sink that cannot write.
-pub fn render_sequence(
-    frames: impl IntoIterator<Item = Result<Frame>>,
-    tracks: &[TrackPoint],
-    truth: Option<&[TrackPoint]>,
-    config: &RenderConfig,
-    sink: &mut dyn FrameSink,
-    mut progress: impl FnMut(u32),
-) -> Result<u32> {
-    let tracks_by_frame = group_by_frame(tracks);
-    let truth_by_frame = truth.map(group_by_frame);
-    let mut left = Renderer::new(config.clone())?;
-    let mut right = Renderer::new(config.clone())?;
-    let none = Vec::new();
-    let mut n = 0;
-    for frame in frames {
-        let frame = frame?;
-        let img = left.render(&frame, tracks_by_frame.get(&frame.index).unwrap_or(&none));
-        let img = match &truth_by_frame {
-            Some(t) => {
-                let r = right.render(&frame, t.get(&frame.index).unwrap_or(&none));
-                side_by_side(&img, &r, &config.tracks_title, &config.truth_title)?
-            }
-            None => img,
-        };
-        sink.write_frame(frame.index, &img)?;
-        n += 1;
-        progress(frame.index);
-    }
-    Ok(n)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -468,41 +430,6 @@ mod tests {
         assert_eq!(out.get_pixel(80, 35), &Rgb([200, 100, 0]));
         // Banners: dark tag with white text at each half's top-left.
         assert!((50..75).any(|x| out.get_pixel(x, 5).0[0] == 20));
-        Ok(())
-    }
-
-    #[test]
-    fn render_sequence_writes_every_frame_side_by_side() -> Result<()> {
-        struct Collect(Vec<(u32, RgbImage)>);
-        impl FrameSink for Collect {
-            fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
-                self.0.push((index, image.clone()));
-                Ok(())
-            }
-            fn finish(&mut self) -> Result<()> {
-                Ok(())
-            }
-        }
-        let tracks: Vec<_> = (1..=3).map(|f| point(f, 1, 10.0, 10.0)).collect();
-        let truth: Vec<_> = (1..=3).map(|f| point(f, 5, 60.0, 40.0)).collect();
-        let mut sink = Collect(Vec::new());
-        let mut seen = Vec::new();
-        let n = render_sequence(
-            (1..=3).map(|i| Ok(frame(i))),
-            &tracks,
-            Some(&truth),
-            &no_labels(),
-            &mut sink,
-            |i| seen.push(i),
-        )?;
-        assert_eq!(n, 3);
-        assert_eq!(seen, [1, 2, 3]);
-        let (_, img) = &sink.0[2];
-        assert_eq!(img.dimensions(), (240, 80));
-        // Track 1 on the left half, truth 5 on the right half (offset by 120 px).
-        assert_eq!(img.get_pixel(10, 15), &id_colour(1));
-        assert_eq!(img.get_pixel(180, 45), &id_colour(5));
-        assert_eq!(img.get_pixel(60, 45), &Rgb([0, 0, 0]));
         Ok(())
     }
 

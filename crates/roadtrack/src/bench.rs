@@ -3,7 +3,7 @@
 //! Each stage runs on a named input and reports frames (or items) per second of wall time.
 //! Timings are measurements, never test assertions.
 
-use crate::detect::background::{Detector, DetectorConfig};
+use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::io::{SourceOptions, source};
@@ -110,10 +110,11 @@ pub fn decode(path: &Path, options: &SourceOptions) -> Result<StageResult> {
 pub fn detect_frames(
     label: &str,
     frames: &[Frame],
-    config: &DetectorConfig,
+    config: &BackgroundDetectorConfig,
 ) -> Result<StageResult> {
     let total = Some(frames.len() as u32);
-    let mut det = Detector::bootstrap(config.clone(), frames.iter().cloned().map(Ok), total)?;
+    let mut det =
+        BackgroundDetector::bootstrap(config.clone(), frames.iter().cloned().map(Ok), total)?;
     let start = Instant::now();
     let mut regions = 0usize;
     for f in frames {
@@ -195,8 +196,8 @@ mod tests {
     #[test]
     fn generated_sequence_has_the_objects_the_detector_finds() -> Result<()> {
         let frames = moving_boxes(320, 240, 30, 4);
-        let mut det = Detector::bootstrap(
-            DetectorConfig::default(),
+        let mut det = BackgroundDetector::bootstrap(
+            BackgroundDetectorConfig::default(),
             frames.iter().cloned().map(Ok),
             Some(30),
         )?;

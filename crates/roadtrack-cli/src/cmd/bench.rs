@@ -3,7 +3,7 @@
 use crate::common::Ui;
 use anyhow::Result;
 use roadtrack::bench::{self, StageResult};
-use roadtrack::detect::background::DetectorConfig;
+use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::io::SourceOptions;
 use std::path::PathBuf;
 
@@ -56,13 +56,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             results.push(bench::detect_frames(
                 &label,
                 &frames,
-                &DetectorConfig::default(),
+                &BackgroundDetectorConfig::default(),
             )?);
         }
         results.push(bench::detect_frames(
             "generated 640×480, 12 boxes",
             &generated,
-            &DetectorConfig::default(),
+            &BackgroundDetectorConfig::default(),
         )?);
     }
     if want("simulate") {

@@ -2,7 +2,7 @@
 
 use crate::common::{FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
-use roadtrack::detect::background::{Detector, DetectorConfig};
+use roadtrack::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
 use roadtrack::io::{detections::write_detections, source};
 use std::path::PathBuf;
 
@@ -19,7 +19,7 @@ pub struct Args {
     /// Output detections CSV (`-` for standard output).
     #[arg(short, long, default_value = "detections.csv")]
     pub output: PathBuf,
-    /// TOML file with a `DetectorConfig` ([background] and [regions] tables).
+    /// TOML file with a `BackgroundDetectorConfig` ([background] and [regions] tables).
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
     /// Smallest region kept, px² (overrides the config).
@@ -42,7 +42,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    let mut config: DetectorConfig = load_config(args.config.as_deref())?;
+    let mut config: BackgroundDetectorConfig = load_config(args.config.as_deref())?;
     if let Some(a) = args.min_area {
         config.regions.min_area_px = a;
     }
@@ -65,7 +65,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         total.map_or("unknown".into(), |t| t.to_string())
     ));
     let bar = ui.progress(None, "background");
-    let mut detector = Detector::bootstrap_source(config, &args.input, &options)?;
+    let mut detector = BackgroundDetector::bootstrap_source(config, &args.input, &options)?;
     bar.finish_and_clear();
 
     let frames = source::open(&args.input, &options)?;

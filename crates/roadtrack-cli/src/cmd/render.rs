@@ -1,9 +1,12 @@
 //! `roadtrack render`: boxes, ids, class colours and fading trails over the frames.
 
 use crate::common::{FrameArgs, Ui};
+use crate::overlay::OverlaySink;
 use anyhow::{Context, Result};
 use roadtrack::io::{read_track_points, read_truth_points, sink, source};
-use roadtrack_viz::render::{ColourBy, RenderConfig, render_sequence};
+use roadtrack::track::Pipeline;
+use roadtrack::track::replay::ReplayTracker;
+use roadtrack_viz::render::{ColourBy, RenderConfig};
 use std::path::PathBuf;
 
 /// Draw tracks over the frames: boxes, ids, class colours and fading trails.
@@ -93,19 +96,20 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     ));
     // Choice: with --step k the video plays at fps / k, so it runs in real time.
     let video_fps = info.fps / f64::from(options.step);
-    let mut out = sink::open_sink(&args.output, video_fps)
+    let out = sink::open_sink(&args.output, video_fps)
         .with_context(|| format!("opening output {}", args.output.display()))?;
-    let bar = ui.progress(info.selected_frames.map(u64::from), "render");
-    let n = render_sequence(
-        frames,
-        &tracks,
-        truth.as_deref(),
-        &config,
-        out.as_mut(),
-        |_| bar.inc(1),
-    )?;
+    let total = info.selected_frames.map(u64::from);
+    let bar = ui.progress(total, "render");
+    let mut overlay = OverlaySink::new(&config, truth.as_deref(), out)?;
+    let mut pipeline = Pipeline::new(Box::new(ReplayTracker::new(tracks)));
+    pipeline.sinks.push(Box::new(&mut overlay));
+    pipeline.run(frames, total, &mut |_, _| bar.inc(1))?;
+    drop(pipeline);
     bar.finish_and_clear();
-    out.finish()?;
-    ui.info(format!("{n} frames → {}", args.output.display()));
+    ui.info(format!(
+        "{} frames → {}",
+        overlay.frames,
+        args.output.display()
+    ));
     Ok(())
 }

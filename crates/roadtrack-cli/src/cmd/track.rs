@@ -2,11 +2,21 @@
 
 use crate::common::{FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
+use roadtrack::analysis::ground::GroundStage;
 use roadtrack::analysis::kinematics::GroundPoint;
 use roadtrack::calibration::Calibration;
-use roadtrack::detect::background::DetectorConfig;
-use roadtrack::io::{geojson, mot, trajectories};
-use roadtrack::track_point::TrackPoint;
+use roadtrack::detect::FrameDetections;
+use roadtrack::detect::background::BackgroundDetectorConfig;
+use roadtrack::frame::Frame;
+use roadtrack::io::source;
+use roadtrack::track::filter::{FilterMethod, FilterTrackConfig};
+use roadtrack::track::method::BuiltTracker;
+use roadtrack::track::mrf::object_map::BLOCK_PX;
+use roadtrack::track::mrf::{MrfConfig, MrfTracker};
+use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
+use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
+use roadtrack::track::{FramePoints, MethodConfig, Pipeline, PointSink, PointStage, Tracker};
+use roadtrack_viz::object_map::{BlockLabels, MapDump};
 use std::path::PathBuf;
 
 /// Tracking methods (METHODS.md).
@@ -69,12 +79,12 @@ pub struct Args {
     /// Also write the trajectories CSV here.
     #[arg(long, value_name = "F.csv")]
     pub trajectories: Option<PathBuf>,
-    /// Method config TOML (relaxation: `TrackerConfig` with a `[relaxation]` table;
+    /// Method config TOML (relaxation: `RelaxationTrackerConfig` with a `[relaxation]` table;
     /// mrf: `MrfConfig`; pf/phd: `FilterTrackConfig` with `[pf]`, `[phd]`, `[likelihood]`,
     /// `[detector]` tables). Fields left out keep the paper's defaults.
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
-    /// Foreground-extraction config TOML (`DetectorConfig`) for relaxation.
+    /// Foreground-extraction config TOML (`BackgroundDetectorConfig`) for relaxation.
     #[arg(long, value_name = "F.toml")]
     pub detector_config: Option<PathBuf>,
     /// Calibration TOML (metres per pixel, homography, or point pairs): adds x_m, y_m,
@@ -146,125 +156,141 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         }
         bar.set_position(done);
     };
-    let mut points: Vec<TrackPoint> = match args.method {
+    let method = match args.method {
         Method::Relaxation => {
-            let mut cfg: roadtrack::track::relaxation::tracker::TrackerConfig =
-                load_config(args.config.as_deref())?;
+            let mut tracker: RelaxationTrackerConfig = load_config(args.config.as_deref())?;
             if let Some(k) = args.max_missed_frames {
-                cfg.max_missed_frames = k;
+                tracker.max_missed_frames = k;
             }
-            let det: DetectorConfig = load_config(args.detector_config.as_deref())?;
-            roadtrack::analysis::ground::relaxation_track_source(
-                &cfg,
-                &det,
-                &args.input,
-                &options,
-                &mut progress,
-            )?
+            let detector: BackgroundDetectorConfig = load_config(args.detector_config.as_deref())?;
+            MethodConfig::Relaxation {
+                tracker: Box::new(tracker),
+                detector: Box::new(detector),
+            }
         }
         Method::Mrf => {
-            let mut cfg: roadtrack::track::mrf::MrfConfig = load_config(args.config.as_deref())?;
+            let mut config: MrfConfig = load_config(args.config.as_deref())?;
             if let Some(v) = args.mrf_variant {
-                cfg.variant = match v {
+                config.variant = match v {
                     MrfVariant::Legacy => roadtrack::track::mrf::Variant::Legacy,
                     MrfVariant::Improved => roadtrack::track::mrf::Variant::Improved,
                 };
             }
-            let opts = roadtrack::track::mrf::TrackOptions {
-                source: options.clone(),
+            MethodConfig::Mrf {
+                config: Box::new(config),
                 seed: args.seed,
-            };
-            let mut dump = args
-                .object_maps
-                .as_deref()
-                .map(roadtrack_viz::object_map::MapDump::new);
-            let points = roadtrack::track::mrf::track_source(
-                &cfg,
-                &args.input,
-                &opts,
-                &mut |frame, tracker, points| match dump.as_mut() {
-                    Some(d) => {
-                        let map = tracker.object_map();
-                        let labels = roadtrack_viz::object_map::BlockLabels {
-                            cols: map.grid.cols,
-                            rows: map.grid.rows,
-                            block_px: roadtrack::track::mrf::object_map::BLOCK_PX,
-                            ids: &map.ids,
-                        };
-                        d.add(frame, &labels, points)
-                    }
-                    None => Ok(()),
-                },
-                &mut progress,
-            )?;
-            if let Some(d) = dump {
-                d.finish()?;
             }
-            points
         }
         Method::Pf | Method::Phd => {
-            use roadtrack::track::filter::track::{
-                FilterMethod, FilterTrackConfig, track_source_with_model,
-            };
-            let mut cfg: FilterTrackConfig = load_config(args.config.as_deref())?;
-            let method = if args.method == Method::Pf {
-                FilterMethod::Pf
-            } else {
-                FilterMethod::Phd
-            };
+            let mut config: FilterTrackConfig = load_config(args.config.as_deref())?;
             if args.likelihood == LikelihoodArg::Colour {
                 if args.model.is_some() {
                     anyhow::bail!("--model needs --likelihood cnn or ssd");
                 }
                 if let Some(s) = args.dense_stride {
-                    cfg.likelihood.dense_stride_px = s;
+                    config.likelihood.dense_stride_px = s;
                 }
                 if let Some(s) = args.window_scale {
-                    cfg.likelihood.window_scale = s;
+                    config.likelihood.window_scale = s;
                 }
-                cfg.validate()?;
+                config.validate()?;
             }
-            let model = load_network(&args)?;
-            track_source_with_model(
-                method,
-                &cfg,
-                &args.input,
-                &options,
-                args.seed,
-                model,
-                &mut progress,
-            )?
-            .points
+            MethodConfig::Filter {
+                method: if args.method == Method::Pf {
+                    FilterMethod::Pf
+                } else {
+                    FilterMethod::Phd
+                },
+                config: Box::new(config),
+                model: load_network(&args)?,
+                seed: args.seed,
+            }
         }
     };
-    bar.finish_and_clear();
+    let info = source::open(&args.input, &options)?.info.clone();
+    let built = method.build(&args.input, &options, &info)?;
+    let tracker: Box<dyn Tracker> = match (built.tracker, &args.object_maps) {
+        (BuiltTracker::Mrf(mrf), Some(dir)) => Box::new(ObjectMapDump {
+            mrf,
+            dump: Some(MapDump::new(dir)),
+        }),
+        (t, _) => t.boxed(),
+    };
+    let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
     if let Some(cal) = &calibration {
         let gp = args.ground_point.map(|g| match g {
             GroundPointArg::BottomCentre => GroundPoint::BottomCentre,
             GroundPointArg::Centre => GroundPoint::Centre,
         });
-        roadtrack::analysis::ground::attach_calibration(&mut points, cal, gp, args.smooth_s)
-            .context("putting the tracks on the ground")?;
+        stages.push(Box::new(
+            GroundStage::new(cal, gp, args.smooth_s).context("putting the tracks on the ground")?,
+        ));
     }
-    mot::write_tracks(&args.output, &points)?;
+    let mut sinks: Vec<Box<dyn PointSink>> = vec![Box::new(MotSink::create(&args.output)?)];
     if let Some(p) = &args.trajectories {
-        trajectories::write_trajectories(p, &points)?;
+        sinks.push(Box::new(TrajectoriesSink::create(
+            p,
+            calibration.is_some(),
+        )?));
     }
     if let Some(p) = &args.geojson {
-        geojson::write_geojson(p, &points)?;
+        sinks.push(Box::new(GeoJsonSink::new(p)));
     }
-    let ids = points
-        .iter()
-        .map(|p| p.id)
-        .collect::<std::collections::BTreeSet<_>>()
-        .len();
+    let mut pipeline = Pipeline {
+        detector: built.detector,
+        tracker,
+        stages,
+        sinks,
+    };
+    let frames = source::open(&args.input, &options)?;
+    let total = frames.info.selected_frames.map(u64::from);
+    let summary = pipeline
+        .run(frames, total, &mut progress)
+        .context("tracking")?;
+    bar.finish_and_clear();
     ui.info(format!(
         "{} tracks, {} boxes → {}",
-        ids,
-        points.len(),
+        summary.tracks,
+        summary.points,
         args.output.display()
     ));
     Ok(())
+}
+
+/// The MRF tracker writing its Object-map after every frame (`--object-maps DIR`).
+struct ObjectMapDump {
+    mrf: Box<MrfTracker>,
+    dump: Option<MapDump>,
+}
+
+impl Tracker for ObjectMapDump {
+    fn step(
+        &mut self,
+        frame: &Frame,
+        detections: &FrameDetections,
+    ) -> roadtrack::Result<Vec<FramePoints>> {
+        let out = Tracker::step(self.mrf.as_mut(), frame, detections)?;
+        if let Some(dump) = self.dump.as_mut() {
+            let map = self.mrf.object_map();
+            let labels = BlockLabels {
+                cols: map.grid.cols,
+                rows: map.grid.rows,
+                block_px: BLOCK_PX,
+                ids: &map.ids,
+            };
+            for f in &out {
+                dump.add(frame, &labels, &f.points)?;
+            }
+        }
+        Ok(out)
+    }
+
+    fn finish(&mut self) -> roadtrack::Result<Vec<FramePoints>> {
+        if let Some(dump) = self.dump.take() {
+            dump.finish()?;
+        }
+        Ok(Vec::new())
+    }
 }
 
 /// The network likelihood of `--likelihood cnn|ssd`; `None` for colour.

@@ -2,52 +2,124 @@
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Writes a file by calling `write` on a buffered writer, atomically.
+/// An output file written in pieces and put in place only when complete.
 ///
-/// The data go to a temporary file in the destination's folder (created if missing), which
-/// is flushed, synced and renamed over `path` only when `write` succeeded; on failure the
-/// temporary file is removed and `path` is untouched. The path `-` writes to standard output.
+/// The data go to a temporary file in the destination's folder (created if missing); on
+/// [`AtomicFile::commit`] it is flushed, synced and renamed over the path. Dropped without
+/// a commit (an error, a panic), the temporary file is removed and the path is untouched.
+/// The path `-` writes to standard output as the data come.
+pub struct AtomicFile {
+    path: PathBuf,
+    out: Target,
+}
+
+enum Target {
+    Stdout(BufWriter<std::io::Stdout>),
+    Temp(BufWriter<tempfile::NamedTempFile>),
+}
+
+impl std::fmt::Debug for AtomicFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AtomicFile")
+            .field("path", &self.path)
+            .finish()
+    }
+}
+
+impl AtomicFile {
+    /// Starts the output `path` (`-` = standard output).
+    ///
+    /// # Errors
+    /// The folder cannot be created or the temporary file cannot be made there.
+    pub fn create(path: &Path) -> Result<Self> {
+        if path.as_os_str() == "-" {
+            return Ok(Self {
+                path: path.to_owned(),
+                out: Target::Stdout(BufWriter::new(std::io::stdout())),
+            });
+        }
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let tmp = tempfile::Builder::new()
+            .prefix(".roadtrack-")
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(dir, e))?;
+        Ok(Self {
+            path: path.to_owned(),
+            out: Target::Temp(BufWriter::new(tmp)),
+        })
+    }
+
+    /// The destination path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flushes, syncs and renames the temporary file over the destination.
+    ///
+    /// # Errors
+    /// A write, sync or rename fails (the destination is then untouched).
+    pub fn commit(self) -> Result<()> {
+        let path = self.path;
+        match self.out {
+            Target::Stdout(mut out) => out.flush().map_err(|e| Error::io("<stdout>", e)),
+            Target::Temp(out) => {
+                let tmp = out
+                    .into_inner()
+                    .map_err(|e| Error::io(&path, e.into_error()))?;
+                tmp.as_file().sync_all().map_err(|e| Error::io(&path, e))?;
+                // Temporary files are created private (0600); a finished output gets the
+                // usual mode.
+                #[cfg(unix)]
+                {
+                    use std::os::unix::fs::PermissionsExt;
+                    std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644))
+                        .map_err(|e| Error::io(&path, e))?;
+                }
+                tmp.persist(&path).map_err(|e| Error::io(&path, e.error))?;
+                Ok(())
+            }
+        }
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match &mut self.out {
+            Target::Stdout(w) => w.write(buf),
+            Target::Temp(w) => w.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match &mut self.out {
+            Target::Stdout(w) => w.flush(),
+            Target::Temp(w) => w.flush(),
+        }
+    }
+}
+
+/// Writes a file by calling `write` on a buffered writer, atomically ([`AtomicFile`]): on
+/// failure the temporary file is removed and `path` is untouched. The path `-` writes to
+/// standard output.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    if path.as_os_str() == "-" {
-        let stdout = std::io::stdout();
-        let mut out = BufWriter::new(stdout.lock());
-        write(&mut out)
-            .and_then(|()| out.flush())
-            .map_err(|e| Error::io("<stdout>", e))?;
-        return Ok(());
-    }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
+    let mut file = AtomicFile::create(path)?;
+    let name = if path.as_os_str() == "-" {
+        Path::new("<stdout>")
+    } else {
+        path
     };
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".roadtrack-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(dir, e))?;
-    let mut out = BufWriter::new(tmp);
-    write(&mut out)
-        .and_then(|()| out.flush())
-        .map_err(|e| Error::io(path, e))?;
-    let tmp = out
-        .into_inner()
-        .map_err(|e| Error::io(path, e.into_error()))?;
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
-    // Temporary files are created private (0600); a finished output gets the usual mode.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| Error::io(path, e))?;
-    }
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+    write(&mut file).map_err(|e| Error::io(name, e))?;
+    file.commit()
 }
 
 /// Writes `bytes` to `path` atomically.

@@ -22,10 +22,13 @@
 //! a geographic origin. Numbers are rounded to 1 mm and 1 µs, so the files are small and
 //! byte-identical for the same input.
 
+use super::atomic::AtomicFile;
+use crate::class::ObjectClass;
 use crate::error::{Error, Result};
 use crate::track_point::TrackPoint;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
+use std::io::Write as _;
 use std::path::Path;
 
 fn round(x: f64, decimals: i32) -> f64 {
@@ -35,84 +38,123 @@ fn round(x: f64, decimals: i32) -> f64 {
     if r == 0.0 { 0.0 } else { r }
 }
 
-/// The trajectories as a GeoJSON `FeatureCollection` (see the module documentation).
-///
-/// # Errors
-/// A point without a ground state (trajectories need a calibration first).
-pub fn to_geojson(points: &[TrackPoint]) -> Result<Value> {
-    let mut by_id: BTreeMap<u64, Vec<&TrackPoint>> = BTreeMap::new();
-    for p in points {
-        if p.ground.is_none() {
-            return Err(Error::Invalid(format!(
+/// What the GeoJSON keeps of one track: its vertices and class votes, a few numbers per
+/// point rather than whole track points.
+#[derive(Debug, Default)]
+struct TrackSummary {
+    /// `(frame, time_s, x_m, y_m, speed_mps)` in frame order.
+    vertices: Vec<(u32, f64, f64, f64, f64)>,
+    /// Class counts in order of first appearance.
+    classes: Vec<(ObjectClass, usize)>,
+}
+
+impl TrackSummary {
+    fn push(&mut self, p: &TrackPoint) -> Result<()> {
+        let g = p.ground.ok_or_else(|| {
+            Error::Invalid(format!(
                 "track {} at frame {} has no ground coordinates; GeoJSON export needs \
                  trajectories from a calibrated run (--calibration)",
                 p.id, p.frame
-            )));
+            ))
+        })?;
+        self.vertices
+            .push((p.frame, p.time_s, g.x_m, g.y_m, g.speed_mps));
+        match self.classes.iter_mut().find(|(c, _)| *c == p.class) {
+            Some((_, n)) => *n += 1,
+            None => self.classes.push((p.class.clone(), 1)),
         }
-        by_id.entry(p.id).or_default().push(p);
+        Ok(())
     }
-    let mut features = Vec::with_capacity(by_id.len());
-    for (id, mut track) in by_id {
-        track.sort_by_key(|p| p.frame);
-        let ground: Vec<_> = track.iter().filter_map(|p| p.ground).collect();
-        let coords: Vec<Value> = ground
+
+    fn feature(&self, id: u64) -> Value {
+        let v = &self.vertices;
+        let coords: Vec<Value> = v
             .iter()
-            .map(|g| json!([round(g.x_m, 3), round(g.y_m, 3)]))
+            .map(|&(_, _, x, y, _)| json!([round(x, 3), round(y, 3)]))
             .collect();
-        let length_m: f64 = ground
+        let length_m: f64 = v
             .windows(2)
-            .map(|w| (w[1].x_m - w[0].x_m).hypot(w[1].y_m - w[0].y_m))
+            .map(|w| (w[1].2 - w[0].2).hypot(w[1].3 - w[0].3))
             .sum();
-        let mean_speed = ground.iter().map(|g| g.speed_mps).sum::<f64>() / ground.len() as f64;
+        let mean_speed = v.iter().map(|t| t.4).sum::<f64>() / v.len() as f64;
         // Most frequent class; ties go to the class seen first.
-        let mut counts: Vec<(&crate::ObjectClass, usize)> = Vec::new();
-        for p in &track {
-            match counts.iter_mut().find(|(c, _)| **c == p.class) {
-                Some((_, n)) => *n += 1,
-                None => counts.push((&p.class, 1)),
-            }
-        }
-        let class = counts
+        let class = self
+            .classes
             .iter()
-            .fold(
-                None::<(&crate::ObjectClass, usize)>,
-                |best, &(c, n)| match best {
-                    Some((_, bn)) if bn >= n => best,
-                    _ => Some((c, n)),
-                },
-            )
+            .fold(None::<(&ObjectClass, usize)>, |best, (c, n)| match best {
+                Some((_, bn)) if bn >= *n => best,
+                _ => Some((c, *n)),
+            })
             .map_or("unknown", |(c, _)| c.name());
-        let (first, last) = (track[0], track[track.len() - 1]);
+        let (first, last) = (v[0], v[v.len() - 1]);
         let geometry = if coords.len() >= 2 {
             json!({"type": "LineString", "coordinates": coords})
         } else {
             json!({"type": "Point", "coordinates": coords[0]})
         };
-        features.push(json!({
+        json!({
             "type": "Feature",
             "id": id,
             "geometry": geometry,
             "properties": {
                 "id": id,
                 "class": class,
-                "start_frame": first.frame,
-                "end_frame": last.frame,
-                "start_time_s": round(first.time_s, 6),
-                "end_time_s": round(last.time_s, 6),
-                "n_points": track.len(),
+                "start_frame": first.0,
+                "end_frame": last.0,
+                "start_time_s": round(first.1, 6),
+                "end_time_s": round(last.1, 6),
+                "n_points": v.len(),
                 "mean_speed_mps": round(mean_speed, 3),
                 "length_m": round(length_m, 3),
-                "times_s": track.iter().map(|p| round(p.time_s, 6)).collect::<Vec<_>>(),
+                "times_s": v.iter().map(|t| round(t.1, 6)).collect::<Vec<_>>(),
             }
-        }));
+        })
     }
+}
+
+/// The foreign member saying what the coordinates are.
+fn coordinates_note() -> Value {
+    json!({
+        "coordinates": "local-metres",
+        "note": "x_m, y_m in metres in the calibration's ground frame; not longitude/latitude \
+                 unless the calibration has a geographic origin",
+    })
+}
+
+/// Track summaries by id from `points` in any order (each track's points sorted by frame).
+fn summaries(points: &[TrackPoint]) -> Result<BTreeMap<u64, TrackSummary>> {
+    let mut by_id: BTreeMap<u64, Vec<&TrackPoint>> = BTreeMap::new();
+    for p in points {
+        if p.ground.is_none() {
+            // Report the first such point in input order.
+            TrackSummary::default().push(p)?;
+        }
+        by_id.entry(p.id).or_default().push(p);
+    }
+    let mut out = BTreeMap::new();
+    for (id, mut track) in by_id {
+        track.sort_by_key(|p| p.frame);
+        let mut t = TrackSummary::default();
+        for p in track {
+            t.push(p)?;
+        }
+        out.insert(id, t);
+    }
+    Ok(out)
+}
+
+/// The trajectories as a GeoJSON `FeatureCollection` (see the module documentation).
+///
+/// # Errors
+/// A point without a ground state (trajectories need a calibration first).
+pub fn to_geojson(points: &[TrackPoint]) -> Result<Value> {
+    let features: Vec<Value> = summaries(points)?
+        .iter()
+        .map(|(id, t)| t.feature(*id))
+        .collect();
     Ok(json!({
         "type": "FeatureCollection",
-        "roadtrack": {
-            "coordinates": "local-metres",
-            "note": "x_m, y_m in metres in the calibration's ground frame; not longitude/latitude \
-                     unless the calibration has a geographic origin",
-        },
+        "roadtrack": coordinates_note(),
         "features": features,
     }))
 }
@@ -123,25 +165,60 @@ pub fn to_geojson(points: &[TrackPoint]) -> Result<Value> {
 /// # Errors
 /// As [`to_geojson`], and a file that cannot be written.
 pub fn write_geojson(path: &Path, points: &[TrackPoint]) -> Result<()> {
-    let value = to_geojson(points)?;
+    write_summaries(path, &summaries(points)?)
+}
+
+fn write_summaries(path: &Path, tracks: &BTreeMap<u64, TrackSummary>) -> Result<()> {
     let text = |v: &Value| serde_json::to_string(v).map_err(|e| Error::Invalid(e.to_string()));
-    let note = text(&value["roadtrack"])?;
-    let features: Vec<String> = value["features"]
-        .as_array()
-        .map(|a| a.iter().map(text).collect::<Result<_>>())
-        .transpose()?
-        .unwrap_or_default();
-    super::write_atomic(path, |w| {
-        writeln!(
-            w,
-            "{{\"type\":\"FeatureCollection\",\"roadtrack\":{note},\"features\":["
-        )?;
-        for (i, f) in features.iter().enumerate() {
-            let sep = if i + 1 < features.len() { "," } else { "" };
-            writeln!(w, "{f}{sep}")?;
+    let note = text(&coordinates_note())?;
+    let mut out = AtomicFile::create(path)?;
+    let io = |e| Error::io(path, e);
+    writeln!(
+        out,
+        "{{\"type\":\"FeatureCollection\",\"roadtrack\":{note},\"features\":["
+    )
+    .map_err(io)?;
+    for (i, (id, t)) in tracks.iter().enumerate() {
+        let sep = if i + 1 < tracks.len() { "," } else { "" };
+        writeln!(out, "{}{sep}", text(&t.feature(*id))?).map_err(io)?;
+    }
+    writeln!(out, "]}}").map_err(io)?;
+    out.commit()
+}
+
+/// A GeoJSON file of trajectories built as the points come, in frame order; written on
+/// [`GeoJsonWriter::commit`] (features are per track, so nothing can be written before the
+/// last point). Memory: five numbers per point and a class tally per track.
+#[derive(Debug)]
+pub struct GeoJsonWriter {
+    path: std::path::PathBuf,
+    tracks: BTreeMap<u64, TrackSummary>,
+}
+
+impl GeoJsonWriter {
+    /// A writer for `path` (`-` = standard output).
+    pub fn new(path: &Path) -> Self {
+        Self {
+            path: path.to_owned(),
+            tracks: BTreeMap::new(),
         }
-        writeln!(w, "]}}")
-    })
+    }
+
+    /// Adds one point; points must come in frame order.
+    ///
+    /// # Errors
+    /// The point has no ground state.
+    pub fn add_point(&mut self, p: &TrackPoint) -> Result<()> {
+        self.tracks.entry(p.id).or_default().push(p)
+    }
+
+    /// Writes the file, atomically.
+    ///
+    /// # Errors
+    /// The file cannot be written.
+    pub fn commit(self) -> Result<()> {
+        write_summaries(&self.path, &self.tracks)
+    }
 }
 
 #[cfg(test)]

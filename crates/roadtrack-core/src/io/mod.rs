@@ -21,7 +21,7 @@ pub mod table;
 pub mod trajectories;
 pub mod video;
 
-pub use atomic::write_atomic;
+pub use atomic::{AtomicFile, write_atomic};
 pub use source::{FrameSource, SourceInfo, SourceKind, SourceOptions};
 
 use crate::error::Result;

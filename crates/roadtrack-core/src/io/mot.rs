@@ -8,11 +8,13 @@
 //! sort, so equal keys keep file order). An empty file is an empty list. Fields may be
 //! separated by commas (MOTChallenge) and surrounded by spaces.
 
+use super::atomic::AtomicFile;
 use super::table::{field_f64, num, trim};
 use crate::detection::Detection;
 use crate::error::{Error, Result};
 use crate::geometry::BBox;
 use crate::track_point::TrackPoint;
+use std::io::Write as _;
 use std::path::Path;
 
 /// One row of a MOTChallenge tracks file.
@@ -307,22 +309,58 @@ pub fn read_detections(path: &Path) -> Result<Vec<Detection>> {
 pub fn write_tracks(path: &Path, points: &[TrackPoint]) -> Result<()> {
     let mut rows: Vec<&TrackPoint> = points.iter().collect();
     rows.sort_by_key(|p| (p.frame, p.id));
-    super::write_atomic(path, |w| {
-        for p in rows {
-            writeln!(
-                w,
-                "{},{},{},{},{},{},{},-1,-1,-1",
-                p.frame,
-                p.id,
-                num(p.bbox.left, 3),
-                num(p.bbox.top, 3),
-                num(p.bbox.width, 3),
-                num(p.bbox.height, 3),
-                num(p.score, 6)
-            )?;
-        }
-        Ok(())
-    })
+    let mut w = TracksWriter::create(path)?;
+    for p in rows {
+        w.write_point(p)?;
+    }
+    w.commit()
+}
+
+/// A MOTChallenge tracks file written as the points come ([`write_tracks`]'s format); the
+/// caller gives the points in (frame, id) order. In place only after
+/// [`TracksWriter::commit`].
+#[derive(Debug)]
+pub struct TracksWriter {
+    out: AtomicFile,
+}
+
+impl TracksWriter {
+    /// Starts `path` (`-` = standard output).
+    ///
+    /// # Errors
+    /// As [`AtomicFile::create`].
+    pub fn create(path: &Path) -> Result<Self> {
+        Ok(Self {
+            out: AtomicFile::create(path)?,
+        })
+    }
+
+    /// Writes one row.
+    ///
+    /// # Errors
+    /// The write fails.
+    pub fn write_point(&mut self, p: &TrackPoint) -> Result<()> {
+        writeln!(
+            self.out,
+            "{},{},{},{},{},{},{},-1,-1,-1",
+            p.frame,
+            p.id,
+            num(p.bbox.left, 3),
+            num(p.bbox.top, 3),
+            num(p.bbox.width, 3),
+            num(p.bbox.height, 3),
+            num(p.score, 6)
+        )
+        .map_err(|e| Error::io(self.out.path(), e))
+    }
+
+    /// Puts the file in place.
+    ///
+    /// # Errors
+    /// As [`AtomicFile::commit`].
+    pub fn commit(self) -> Result<()> {
+        self.out.commit()
+    }
 }
 
 /// Writes MOTChallenge public detections (`det/det.txt`), atomically: id `-1`, the box from

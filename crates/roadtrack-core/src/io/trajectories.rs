@@ -4,6 +4,7 @@
 //!
 //! `x_px,y_px` is the box centre.
 
+use super::atomic::AtomicFile;
 use super::detections::csv_word;
 use super::table::{Table, num};
 use crate::class::ObjectClass;
@@ -11,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{BBox, Point};
 use crate::track_point::{GroundState, TrackPoint};
 use std::collections::HashSet;
+use std::io::Write as _;
 use std::path::Path;
 
 /// Writes `points` as a trajectories CSV, atomically (`-` for standard output), sorted by
@@ -27,44 +29,89 @@ pub fn write_trajectories(path: &Path, points: &[TrackPoint]) -> Result<()> {
             points.len()
         )));
     }
-    let with_ground = n_ground > 0;
     let mut rows: Vec<&TrackPoint> = points.iter().collect();
     rows.sort_by_key(|p| (p.frame, p.id));
-    super::write_atomic(path, |w| {
-        write!(w, "frame,time_s,id,class,x_px,y_px,w_px,h_px,score")?;
-        if with_ground {
-            write!(w, ",x_m,y_m,speed_mps,heading_deg")?;
-        }
-        writeln!(w)?;
-        for p in rows {
-            let c = p.bbox.centre();
-            write!(
-                w,
-                "{},{},{},{},{},{},{},{},{}",
+    let mut w = TrajectoriesWriter::create(path, n_ground > 0)?;
+    for p in rows {
+        w.write_point(p)?;
+    }
+    w.commit()
+}
+
+/// A trajectories CSV written as the points come ([`write_trajectories`]'s format); the
+/// caller gives the points in (frame, id) order. In place only after
+/// [`TrajectoriesWriter::commit`].
+#[derive(Debug)]
+pub struct TrajectoriesWriter {
+    out: AtomicFile,
+    with_ground: bool,
+}
+
+impl TrajectoriesWriter {
+    /// Starts `path` (`-` = standard output) and writes the header, with the ground columns
+    /// when `with_ground`.
+    ///
+    /// # Errors
+    /// As [`AtomicFile::create`].
+    pub fn create(path: &Path, with_ground: bool) -> Result<Self> {
+        let mut out = AtomicFile::create(path)?;
+        let header = if with_ground {
+            "frame,time_s,id,class,x_px,y_px,w_px,h_px,score,x_m,y_m,speed_mps,heading_deg"
+        } else {
+            "frame,time_s,id,class,x_px,y_px,w_px,h_px,score"
+        };
+        writeln!(out, "{header}").map_err(|e| Error::io(path, e))?;
+        Ok(Self { out, with_ground })
+    }
+
+    /// Writes one row.
+    ///
+    /// # Errors
+    /// The point has a ground state and the file has no ground columns or the other way
+    /// round; the write fails.
+    pub fn write_point(&mut self, p: &TrackPoint) -> Result<()> {
+        if p.ground.is_some() != self.with_ground {
+            return Err(Error::Invalid(format!(
+                "frame {}, id {}: {} ground coordinates in a trajectories file {} them",
                 p.frame,
-                num(p.time_s, 6),
                 p.id,
-                csv_word(p.class.name()),
-                num(c.x, 3),
-                num(c.y, 3),
-                num(p.bbox.width, 3),
-                num(p.bbox.height, 3),
-                num(p.score, 6)
-            )?;
-            if let Some(g) = p.ground {
-                write!(
-                    w,
-                    ",{},{},{},{}",
-                    num(g.x_m, 4),
-                    num(g.y_m, 4),
-                    num(g.speed_mps, 4),
-                    num(g.heading_deg, 3)
-                )?;
-            }
-            writeln!(w)?;
+                if p.ground.is_some() { "has" } else { "lacks" },
+                if self.with_ground { "with" } else { "without" }
+            )));
         }
-        Ok(())
-    })
+        let c = p.bbox.centre();
+        let w = &mut self.out;
+        let mut line = format!(
+            "{},{},{},{},{},{},{},{},{}",
+            p.frame,
+            num(p.time_s, 6),
+            p.id,
+            csv_word(p.class.name()),
+            num(c.x, 3),
+            num(c.y, 3),
+            num(p.bbox.width, 3),
+            num(p.bbox.height, 3),
+            num(p.score, 6)
+        );
+        if let Some(g) = p.ground {
+            line.push_str(&format!(
+                ",{},{},{},{}",
+                num(g.x_m, 4),
+                num(g.y_m, 4),
+                num(g.speed_mps, 4),
+                num(g.heading_deg, 3)
+            ));
+        }
+        writeln!(w, "{line}").map_err(|e| Error::io(self.out.path(), e))
+    }
+
+    /// Puts the file in place.
+    ///
+    /// # Errors
+    /// As [`AtomicFile::commit`].
+    pub fn commit(self) -> Result<()> {
+        self.out.commit()
+    }
 }
 
 /// Reads a trajectories CSV.

@@ -9,9 +9,10 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::Point;
+use crate::track::{FramePoints, PointStage};
 use crate::track_point::{GroundState, TrackPoint};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 /// Which image point of a box stands on the ground.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -55,13 +56,7 @@ pub fn attach_ground(
     ground_from_image: &dyn Fn(Point) -> Option<Point>,
     config: &KinematicsConfig,
 ) -> Result<()> {
-    if config.half_window_s.is_nan() || config.half_window_s < 0.0 {
-        return Err(Error::config(
-            "KinematicsConfig",
-            "half_window_s",
-            "must be ≥ 0",
-        ));
-    }
+    config.validate()?;
     let mut by_id: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
     for (i, p) in points.iter().enumerate() {
         by_id.entry(p.id).or_default().push(i);
@@ -70,34 +65,167 @@ pub fn attach_ground(
         idx.sort_by(|&a, &b| points[a].time_s.total_cmp(&points[b].time_s));
         let mut raw = Vec::with_capacity(idx.len());
         for &i in idx.iter() {
-            let p = &points[i];
-            let img = match config.ground_point {
-                GroundPoint::BottomCentre => Point::new(p.bbox.centre().x, p.bbox.bottom()),
-                GroundPoint::Centre => p.bbox.centre(),
-            };
-            let g = ground_from_image(img).ok_or_else(|| {
-                Error::Invalid(format!(
-                    "frame {}, id {}: image point ({:.1}, {:.1}) px has no ground position under the calibration",
-                    p.frame, p.id, img.x, img.y
-                ))
-            })?;
-            raw.push((p.time_s, g));
+            raw.push((
+                points[i].time_s,
+                raw_ground(&points[i], ground_from_image, config)?,
+            ));
         }
         for (k, &i) in idx.iter().enumerate() {
-            let t0 = raw[k].0;
-            let window = raw
-                .iter()
-                .filter(|(t, _)| (t - t0).abs() <= config.half_window_s + 1e-9);
-            let (pos, vel) = local_line(window, t0);
-            points[i].ground = Some(GroundState {
-                x_m: pos.x,
-                y_m: pos.y,
-                speed_mps: vel.x.hypot(vel.y),
-                heading_deg: vel.y.atan2(vel.x).to_degrees(),
-            });
+            points[i].ground = Some(smoothed(raw.iter(), raw[k].0, config));
         }
     }
     Ok(())
+}
+
+impl KinematicsConfig {
+    /// Checks the window.
+    ///
+    /// # Errors
+    /// A negative or NaN half window.
+    pub fn validate(&self) -> Result<()> {
+        if self.half_window_s.is_nan() || self.half_window_s < 0.0 {
+            return Err(Error::config(
+                "KinematicsConfig",
+                "half_window_s",
+                "must be ≥ 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The unsmoothed ground position of `p`'s chosen box point.
+fn raw_ground(
+    p: &TrackPoint,
+    ground_from_image: &dyn Fn(Point) -> Option<Point>,
+    config: &KinematicsConfig,
+) -> Result<Point> {
+    let img = match config.ground_point {
+        GroundPoint::BottomCentre => Point::new(p.bbox.centre().x, p.bbox.bottom()),
+        GroundPoint::Centre => p.bbox.centre(),
+    };
+    ground_from_image(img).ok_or_else(|| {
+        Error::Invalid(format!(
+            "frame {}, id {}: image point ({:.1}, {:.1}) px has no ground position under the calibration",
+            p.frame, p.id, img.x, img.y
+        ))
+    })
+}
+
+/// The ground state at `t0` from a track's `(time, raw ground)` samples in time order: the
+/// local line through those within the half window.
+fn smoothed<'a>(
+    samples: impl Iterator<Item = &'a (f64, Point)>,
+    t0: f64,
+    config: &KinematicsConfig,
+) -> GroundState {
+    let window = samples.filter(|(t, _)| (t - t0).abs() <= config.half_window_s + 1e-9);
+    let (pos, vel) = local_line(window, t0);
+    GroundState {
+        x_m: pos.x,
+        y_m: pos.y,
+        speed_mps: vel.x.hypot(vel.y),
+        heading_deg: vel.y.atan2(vel.x).to_degrees(),
+    }
+}
+
+/// [`attach_ground`] as the points come, frame by frame in time order: a frame leaves once
+/// a frame more than the half window later has come (or at the end), so it holds about one
+/// window of frames and, per track, one window of samples on each side. The results are
+/// those of [`attach_ground`] over the whole run, bit for bit.
+pub struct GroundSmoother<'a> {
+    ground_from_image: Box<dyn Fn(Point) -> Option<Point> + 'a>,
+    config: KinematicsConfig,
+    held: VecDeque<FramePoints>,
+    /// Per track id: `(time, raw ground)` samples still inside some held frame's window.
+    history: BTreeMap<u64, VecDeque<(f64, Point)>>,
+}
+
+impl std::fmt::Debug for GroundSmoother<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GroundSmoother")
+            .field("config", &self.config)
+            .field("held", &self.held.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> GroundSmoother<'a> {
+    /// A smoother mapping image px to ground m with `ground_from_image`.
+    ///
+    /// # Errors
+    /// An invalid config.
+    pub fn new(
+        ground_from_image: Box<dyn Fn(Point) -> Option<Point> + 'a>,
+        config: KinematicsConfig,
+    ) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            ground_from_image,
+            config,
+            held: VecDeque::new(),
+            history: BTreeMap::new(),
+        })
+    }
+
+    /// Releases the oldest held frame with its ground states set.
+    fn release(&mut self) -> Option<FramePoints> {
+        let mut f = self.held.pop_front()?;
+        for p in &mut f.points {
+            if let Some(h) = self.history.get(&p.id) {
+                p.ground = Some(smoothed(h.iter(), p.time_s, &self.config));
+            }
+        }
+        // Samples older than every remaining window are no longer needed (with a margin, so
+        // rounding never drops one the window test would keep).
+        let limit = self
+            .held
+            .front()
+            .map(|n| n.time_s - 2.0 * self.config.half_window_s - 1e-6);
+        self.history.retain(|_, h| {
+            match limit {
+                Some(limit) => {
+                    while h.front().is_some_and(|s| s.0 < limit) {
+                        h.pop_front();
+                    }
+                }
+                None => h.clear(),
+            }
+            !h.is_empty()
+        });
+        Some(f)
+    }
+}
+
+impl PointStage for GroundSmoother<'_> {
+    fn push(&mut self, frame: FramePoints) -> Result<Vec<FramePoints>> {
+        for p in &frame.points {
+            let g = raw_ground(p, &*self.ground_from_image, &self.config)?;
+            self.history
+                .entry(p.id)
+                .or_default()
+                .push_back((p.time_s, g));
+        }
+        let latest = frame.time_s;
+        self.held.push_back(frame);
+        let mut out = Vec::new();
+        while self
+            .held
+            .front()
+            .is_some_and(|f| latest - f.time_s > self.config.half_window_s + 1e-9)
+        {
+            out.extend(self.release());
+        }
+        Ok(out)
+    }
+
+    fn finish(&mut self) -> Result<Vec<FramePoints>> {
+        let mut out = Vec::new();
+        while let Some(f) = self.release() {
+            out.push(f);
+        }
+        Ok(out)
+    }
 }
 
 /// Least-squares line through `(t, p)` pairs evaluated at `t0`: (value, slope).

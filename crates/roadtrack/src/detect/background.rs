@@ -1,6 +1,7 @@
 //! Moving-object extraction for fixed cameras (`roadtrack detect`): background model →
 //! foreground mask → clean-up → regions → detections with centre, box, area, mean colour.
 
+use super::FrameDetections;
 use super::regions::{Region, RegionConfig, clean_mask, extract_regions};
 use crate::detect::background_model::{BackgroundConfig, BackgroundModel, sample_frames};
 use crate::detection::Detection;
@@ -12,14 +13,14 @@ use serde::{Deserialize, Serialize};
 /// Parameters of foreground extraction.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct DetectorConfig {
+pub struct BackgroundDetectorConfig {
     /// The background model.
     pub background: BackgroundConfig,
     /// Mask clean-up and region size limits.
     pub regions: RegionConfig,
 }
 
-impl DetectorConfig {
+impl BackgroundDetectorConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<()> {
         self.background.validate()?;
@@ -27,9 +28,9 @@ impl DetectorConfig {
     }
 }
 
-/// What the detector found in one frame.
+/// The foreground of one frame: the cleaned mask and the regions in it.
 #[derive(Debug, Clone)]
-pub struct FrameDetections {
+pub struct Foreground {
     /// The cleaned foreground mask (255 = foreground).
     pub mask: GrayImage,
     /// The regions kept, in raster order of their first pixel.
@@ -38,16 +39,26 @@ pub struct FrameDetections {
 
 /// Background subtraction and region extraction over a sequence.
 #[derive(Debug, Clone)]
-pub struct Detector {
-    config: DetectorConfig,
+pub struct BackgroundDetector {
+    config: BackgroundDetectorConfig,
     model: BackgroundModel,
 }
 
-impl Detector {
+impl BackgroundDetector {
     /// A detector whose background starts as the median of `samples`.
-    pub fn new(config: DetectorConfig, samples: &[RgbImage]) -> Result<Self> {
+    pub fn new(config: BackgroundDetectorConfig, samples: &[RgbImage]) -> Result<Self> {
         config.validate()?;
         let model = BackgroundModel::from_samples(samples, config.background.clone())?;
+        Ok(Self { config, model })
+    }
+
+    /// A detector over an existing background model (e.g. from
+    /// [`super::background_model::bootstrap_from_source`]).
+    ///
+    /// # Errors
+    /// An invalid config.
+    pub fn with_model(config: BackgroundDetectorConfig, model: BackgroundModel) -> Result<Self> {
+        config.validate()?;
         Ok(Self { config, model })
     }
 
@@ -55,7 +66,7 @@ impl Detector {
     /// over the same source; `total` frames if known) and keeps
     /// `config.background.bootstrap_frames` of them spread evenly.
     pub fn bootstrap(
-        config: DetectorConfig,
+        config: BackgroundDetectorConfig,
         frames: impl Iterator<Item = Result<Frame>>,
         total: Option<u32>,
     ) -> Result<Self> {
@@ -65,9 +76,9 @@ impl Detector {
     }
 
     /// A detector bootstrapped by a first, read-only pass over `input` (see
-    /// [`Detector::bootstrap`]).
+    /// [`BackgroundDetector::bootstrap`]).
     pub fn bootstrap_source(
-        config: DetectorConfig,
+        config: BackgroundDetectorConfig,
         input: &std::path::Path,
         options: &crate::io::SourceOptions,
     ) -> Result<Self> {
@@ -86,22 +97,36 @@ impl Detector {
     }
 
     /// Runs on one frame and updates the background.
-    pub fn process(&mut self, frame: &Frame) -> Result<FrameDetections> {
+    pub fn process(&mut self, frame: &Frame) -> Result<Foreground> {
         let raw = self.model.apply(frame.index, &frame.image)?;
         let mask = clean_mask(&raw, &self.config.regions);
         let regions = extract_regions(&mask, &frame.image, &self.config.regions);
-        Ok(FrameDetections { mask, regions })
+        Ok(Foreground { mask, regions })
     }
 
     /// Runs on one frame and returns detections numbered 1.. in raster order.
     pub fn detect(&mut self, frame: &Frame) -> Result<Vec<Detection>> {
+        Ok(self.detect_with_mask(frame)?.detections)
+    }
+
+    /// Runs on one frame: detections numbered 1.. in raster order, and the cleaned mask.
+    pub fn detect_with_mask(&mut self, frame: &Frame) -> Result<FrameDetections> {
         let found = self.process(frame)?;
-        Ok(found
-            .regions
-            .iter()
-            .enumerate()
-            .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1))
-            .collect())
+        Ok(FrameDetections {
+            detections: found
+                .regions
+                .iter()
+                .enumerate()
+                .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1))
+                .collect(),
+            foreground: Some(found.mask),
+        })
+    }
+}
+
+impl super::Detector for BackgroundDetector {
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+        self.detect_with_mask(frame)
     }
 }
 
@@ -136,8 +161,8 @@ mod tests {
     #[test]
     fn finds_every_moving_square_in_every_frame() -> Result<()> {
         let frames = scene(3, 12);
-        let cfg = DetectorConfig::default();
-        let mut det = Detector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(12))?;
+        let cfg = BackgroundDetectorConfig::default();
+        let mut det = BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(12))?;
         for f in &frames {
             let d = det.detect(f)?;
             assert_eq!(d.len(), 3, "frame {}", f.index);

@@ -1,6 +1,42 @@
-//! Finding objects in frames: the per-pixel background model, foreground regions, and the
-//! background-subtraction detector built on them.
+//! Finding objects in frames.
+//!
+//! A [`Detector`] turns one frame into [`FrameDetections`]: the objects found (centre, box,
+//! class, score, mean colour when known) and, for detectors that have one, the foreground
+//! mask. [`background::BackgroundDetector`] is the background-subtraction detector (per-pixel
+//! model of [`background_model`], clean-up and connected regions of [`regions`]).
 
 pub mod background;
 pub mod background_model;
 pub mod regions;
+
+use crate::detection::Detection;
+use crate::error::Result;
+use crate::frame::Frame;
+use image::GrayImage;
+
+/// What a detector found in one frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameDetections {
+    /// The objects, numbered `1..` within the frame.
+    pub detections: Vec<Detection>,
+    /// The cleaned foreground mask (255 = moving), when the detector computes one; the
+    /// filters' foreground likelihood reads it.
+    pub foreground: Option<GrayImage>,
+}
+
+/// Frame → detections. Implemented by [`background::BackgroundDetector`]; a closure
+/// `FnMut(&Frame) -> Result<FrameDetections>` is one too (tests, adapters).
+pub trait Detector {
+    /// Finds the objects of `frame`. Frames come in order; a detector may learn from them
+    /// (a background model updates itself).
+    ///
+    /// # Errors
+    /// A frame the detector cannot process (e.g. of another size than the first).
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections>;
+}
+
+impl<F: FnMut(&Frame) -> Result<FrameDetections>> Detector for F {
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+        self(frame)
+    }
+}

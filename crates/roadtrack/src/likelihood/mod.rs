@@ -15,6 +15,7 @@
 
 pub mod colour;
 pub mod dense;
+pub mod foreground;
 pub mod roi;
 
 pub use colour::{ColourHistogram, ColourLikelihood, ColourLikelihoodConfig};

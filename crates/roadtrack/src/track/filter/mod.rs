@@ -8,27 +8,29 @@
 //!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
 //! - [`scenario`]: a seeded point-target scenario generator with known truth.
 //! - [`bench`](mod@bench): per-stage timings for `roadtrack bench`.
-//! - [`track`](mod@track): foreground detection + PF or PHD with the colour likelihood on a
-//!   video or image sequence (`roadtrack track --method pf|phd`).
+//! - [`config`] and [`tracker`]: PF or PHD over a detector's output with the colour or a
+//!   network likelihood, as a [`crate::track::Tracker`] (`roadtrack track --method pf|phd`).
 //!
 //! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
 //! component, never one heap object per particle.
 
 pub mod bench;
+pub mod config;
 pub mod motion;
 pub mod particle;
 pub mod phd;
 pub mod points;
 pub mod resample;
 pub mod scenario;
-pub mod track;
+pub mod tracker;
 
+pub use config::{FilterMethod, FilterTrackConfig};
 pub use motion::{ConstantVelocity, VelocityNoise};
 pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
 pub use phd::{LabelledPhd, PhdConfig, PhdTracker};
 pub use points::{PointFilterConfig, filter_points};
 pub use resample::ResamplingScheme;
-pub use track::{FilterMethod, FilterTrackConfig, FilterTrackOutput, track_frames, track_source};
+pub use tracker::{FilterTracker, FrameCount};
 
 use crate::geometry::Point;
 use serde::{Deserialize, Serialize};

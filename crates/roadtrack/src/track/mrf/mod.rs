@@ -31,13 +31,11 @@ use crate::class::ObjectClass;
 use crate::detect::background_model::{BackgroundConfig, BackgroundModel, bootstrap_from_frames};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::io::source::{SourceOptions, open};
 use crate::track_point::TrackPoint;
 use block_matching::{BlockMatch, gray_from_rgb, match_blocks};
 use image::GrayImage;
 use object_map::{BLOCK_PX, BlockGrid, MotionMap, NO_OBJECT, ObjectId, ObjectMap, Vector};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
 
 /// Which model of the paper to run (METHODS.md §2 "Two variants").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -494,54 +492,21 @@ impl MrfTracker {
     }
 }
 
-/// Called after each frame with the tracker and the frame's points (e.g. to dump the
-/// Object-map).
-pub type FrameObserver<'a> = dyn FnMut(&Frame, &MrfTracker, &[TrackPoint]) -> Result<()> + 'a;
-
-/// Options of [`track_source`] beyond the tracker's config.
-#[derive(Debug, Clone, Default)]
-pub struct TrackOptions {
-    /// Which frames to read.
-    pub source: SourceOptions,
-    /// Random seed of the Gibbs sampler.
-    pub seed: u64,
-}
-
-/// Runs the tracker over a video, image folder or MOTChallenge sequence
-/// (`roadtrack track --method mrf`): a first pass bootstraps the background (median of
-/// `background.bootstrap_frames` frames spread over the input), the second tracks.
-/// Returns every track point, sorted by frame then id.
-pub fn track_source(
-    config: &MrfConfig,
-    input: &Path,
-    options: &TrackOptions,
-    observe: &mut FrameObserver<'_>,
-    progress: &mut dyn FnMut(u64, u64),
-) -> Result<Vec<TrackPoint>> {
-    config.validate()?;
-    let first = open(input, &options.source)?;
-    let (w, h) = (first.info.width, first.info.height);
-    let total = first.info.selected_frames;
-    let samples = crate::detect::background_model::sample_frames(
-        first,
-        total,
-        config.background.bootstrap_frames,
-    )?;
-    let mut tracker = MrfTracker::new(config.clone(), w, h, options.seed)?;
-    tracker.set_background(BackgroundModel::from_samples(
-        &samples,
-        config.background.clone(),
-    )?)?;
-    let mut points = Vec::new();
-    let total = u64::from(total.unwrap_or(0));
-    for (done, frame) in open(input, &options.source)?.enumerate() {
-        let frame = frame?;
-        let p = tracker.step(&frame)?;
-        observe(&frame, &tracker, &p)?;
-        points.extend(p);
-        progress(done as u64 + 1, total);
+impl crate::track::Tracker for MrfTracker {
+    /// Tracks from the pixels alone (Steps 1–5 of METHODS.md §2); `detections` are not used
+    /// by seed 002's model.
+    fn step(
+        &mut self,
+        frame: &Frame,
+        _detections: &crate::detect::FrameDetections,
+    ) -> Result<Vec<crate::track::FramePoints>> {
+        let points = MrfTracker::step(self, frame)?;
+        Ok(vec![crate::track::FramePoints::new(frame, points)])
     }
-    Ok(points)
+
+    fn finish(&mut self) -> Result<Vec<crate::track::FramePoints>> {
+        Ok(Vec::new())
+    }
 }
 
 /// Throughput of the MRF tracker on some frames (for `roadtrack bench`).

@@ -53,7 +53,7 @@ pub use experiment::{ExperimentTable, Method, run_experiment};
 pub use labels::LabelGraph;
 pub use scale::{ScaleReport, bench_scale, generate_road_network_pair};
 pub use sweep::{SweepGrid, SweepResult, sweep};
-pub use tracker::{RelaxationTracker, TrackerConfig};
+pub use tracker::{RelaxationTracker, RelaxationTrackerConfig};
 pub use update::{Probabilities, RelaxationProblem, Solution, UpdateWeights};
 
 use crate::detection::Detection;

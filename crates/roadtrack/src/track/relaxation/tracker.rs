@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 /// Parameters of the relaxation tracker.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct TrackerConfig {
+pub struct RelaxationTrackerConfig {
     /// The two-frame matcher (METHODS.md §1; the paper's defaults).
     pub relaxation: RelaxationConfig,
     /// `k`: frames a track may go unmatched and still keep its id. Default 3 (paper
@@ -40,7 +40,7 @@ pub struct TrackerConfig {
     pub fallback_box_px: f64,
 }
 
-impl Default for TrackerConfig {
+impl Default for RelaxationTrackerConfig {
     fn default() -> Self {
         Self {
             relaxation: RelaxationConfig::default(),
@@ -50,7 +50,7 @@ impl Default for TrackerConfig {
     }
 }
 
-impl TrackerConfig {
+impl RelaxationTrackerConfig {
     /// Checks every field.
     ///
     /// # Errors
@@ -59,7 +59,7 @@ impl TrackerConfig {
         self.relaxation.validate()?;
         if !(self.fallback_box_px.is_finite() && self.fallback_box_px >= 0.0) {
             return Err(crate::Error::config(
-                "TrackerConfig",
+                "RelaxationTrackerConfig",
                 "fallback_box_px",
                 "must be finite and non-negative",
             ));
@@ -81,7 +81,7 @@ struct Track {
 /// Chains relaxation matchings of consecutive frames into tracks.
 #[derive(Debug, Clone)]
 pub struct RelaxationTracker {
-    config: TrackerConfig,
+    config: RelaxationTrackerConfig,
     tracks: Vec<Track>,
     next_id: u64,
 }
@@ -91,7 +91,7 @@ impl RelaxationTracker {
     ///
     /// # Errors
     /// An invalid configuration.
-    pub fn new(config: TrackerConfig) -> Result<Self> {
+    pub fn new(config: RelaxationTrackerConfig) -> Result<Self> {
         config.validate()?;
         Ok(Self {
             config,
@@ -199,6 +199,22 @@ impl RelaxationTracker {
     }
 }
 
+impl crate::track::Tracker for RelaxationTracker {
+    fn step(
+        &mut self,
+        frame: &crate::frame::Frame,
+        detections: &crate::detect::FrameDetections,
+    ) -> Result<Vec<crate::track::FramePoints>> {
+        let points =
+            RelaxationTracker::step(self, frame.index, frame.time_s, &detections.detections)?;
+        Ok(vec![crate::track::FramePoints::new(frame, points)])
+    }
+
+    fn finish(&mut self) -> Result<Vec<crate::track::FramePoints>> {
+        Ok(Vec::new())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,7 +243,7 @@ mod tests {
 
     #[test]
     fn tracks_keep_their_ids_and_survive_short_gaps() -> Result<()> {
-        let mut t = RelaxationTracker::new(TrackerConfig::default())?;
+        let mut t = RelaxationTracker::new(RelaxationTrackerConfig::default())?;
         let first = ids_by_detection(&t.step(1, 0.0, &platoon(1, 6, &[]))?);
         assert_eq!(first, vec![1, 2, 3, 4, 5, 6]);
         assert_eq!(
@@ -246,7 +262,7 @@ mod tests {
 
     #[test]
     fn a_track_missing_longer_than_k_frames_gets_a_new_id() -> Result<()> {
-        let cfg = TrackerConfig {
+        let cfg = RelaxationTrackerConfig {
             max_missed_frames: 1,
             ..Default::default()
         };
@@ -262,7 +278,7 @@ mod tests {
 
     #[test]
     fn boxes_fall_back_to_a_square_and_frames_must_increase() -> Result<()> {
-        let mut t = RelaxationTracker::new(TrackerConfig::default())?;
+        let mut t = RelaxationTracker::new(RelaxationTrackerConfig::default())?;
         let p = t.step(1, 0.0, &platoon(1, 2, &[]))?;
         assert_eq!(
             p[0].bbox,

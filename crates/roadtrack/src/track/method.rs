@@ -1,0 +1,247 @@
+//! The one dispatch point: a [`Method`] with its config → the detector and tracker that run
+//! it ([`MethodConfig::build`]), and [`track_source`], the source-to-tracks run used by
+//! `roadtrack track`, `demo` and `bench`.
+
+use super::Tracker;
+use super::filter::{FilterMethod, FilterTrackConfig, FilterTracker};
+use super::mrf::{MrfConfig, MrfTracker};
+use super::pipeline::{Pipeline, PointSink, PointStage, RunSummary};
+use super::relaxation::tracker::{RelaxationTracker, RelaxationTrackerConfig};
+use crate::detect::Detector;
+use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
+use crate::detect::background_model::{BackgroundConfig, bootstrap_from_source};
+use crate::error::Result;
+use crate::io::source::{self, SourceInfo, SourceOptions};
+use crate::likelihood::Likelihood;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The tracking methods (METHODS.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Bidirectional probabilistic relaxation between consecutive frames' detections (seed 000).
+    Relaxation,
+    /// Spatio-temporal MRF model on 8×8 blocks (seed 002).
+    Mrf,
+    /// Basic particle filter, ρ particles per object, colour or CNN likelihood (seed 004).
+    Pf,
+    /// Labelled SMC-PHD filter, colour or CNN likelihood (seed 004).
+    Phd,
+}
+
+impl Method {
+    /// Every method, in the order of the papers.
+    pub const ALL: [Method; 4] = [Method::Relaxation, Method::Mrf, Method::Pf, Method::Phd];
+
+    /// The method's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Relaxation => "relaxation",
+            Method::Mrf => "mrf",
+            Method::Pf => "pf",
+            Method::Phd => "phd",
+        }
+    }
+}
+
+/// A method with everything it needs besides the frames.
+pub enum MethodConfig {
+    /// Relaxation over the background detector's detections.
+    Relaxation {
+        /// The tracker (`--config`).
+        tracker: Box<RelaxationTrackerConfig>,
+        /// The detector (`--detector-config`).
+        detector: Box<BackgroundDetectorConfig>,
+    },
+    /// The MRF tracker, which reads the pixels itself.
+    Mrf {
+        /// The model (`--config`).
+        config: Box<MrfConfig>,
+        /// Gibbs sampler seed.
+        seed: u64,
+    },
+    /// The particle or PHD filter over the background detector's detections.
+    Filter {
+        /// PF or PHD.
+        method: FilterMethod,
+        /// Detector, filters, likelihood, births (`--config`).
+        config: Box<FilterTrackConfig>,
+        /// A network likelihood replacing the colour histogram (`roadtrack-cnn`).
+        model: Option<Box<dyn Likelihood>>,
+        /// Seed of the particles.
+        seed: u64,
+    },
+}
+
+impl std::fmt::Debug for MethodConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("MethodConfig").field(&self.method()).finish()
+    }
+}
+
+/// The detector and tracker of a method, ready to run.
+pub struct Built {
+    /// The detector (`None` for the MRF, which reads pixels itself).
+    pub detector: Option<Box<dyn Detector>>,
+    /// The tracker, concrete so a caller can reach method-specific state (the MRF's object
+    /// map) before boxing it.
+    pub tracker: BuiltTracker,
+}
+
+impl std::fmt::Debug for Built {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Built").finish_non_exhaustive()
+    }
+}
+
+/// One of the methods' trackers.
+#[derive(Debug)]
+pub enum BuiltTracker {
+    /// Seed 000.
+    Relaxation(RelaxationTracker),
+    /// Seed 002.
+    Mrf(Box<MrfTracker>),
+    /// Seed 004.
+    Filter(Box<FilterTracker>),
+}
+
+impl BuiltTracker {
+    /// As a trait object.
+    pub fn boxed(self) -> Box<dyn Tracker> {
+        match self {
+            BuiltTracker::Relaxation(t) => Box::new(t),
+            BuiltTracker::Mrf(t) => t,
+            BuiltTracker::Filter(t) => t,
+        }
+    }
+}
+
+impl MethodConfig {
+    /// The paper's defaults of `method` (colour likelihood for the filters).
+    pub fn defaults(method: Method, seed: u64) -> Self {
+        match method {
+            Method::Relaxation => MethodConfig::Relaxation {
+                tracker: Box::default(),
+                detector: Box::default(),
+            },
+            Method::Mrf => MethodConfig::Mrf {
+                config: Box::default(),
+                seed,
+            },
+            Method::Pf | Method::Phd => MethodConfig::Filter {
+                method: if method == Method::Pf {
+                    FilterMethod::Pf
+                } else {
+                    FilterMethod::Phd
+                },
+                config: Box::default(),
+                model: None,
+                seed,
+            },
+        }
+    }
+
+    /// Which method this is.
+    pub fn method(&self) -> Method {
+        match self {
+            MethodConfig::Relaxation { .. } => Method::Relaxation,
+            MethodConfig::Mrf { .. } => Method::Mrf,
+            MethodConfig::Filter {
+                method: FilterMethod::Pf,
+                ..
+            } => Method::Pf,
+            MethodConfig::Filter { .. } => Method::Phd,
+        }
+    }
+
+    /// The background model the method learns before tracking.
+    pub fn background(&self) -> &BackgroundConfig {
+        match self {
+            MethodConfig::Relaxation { detector, .. } => &detector.background,
+            MethodConfig::Mrf { config, .. } => &config.background,
+            MethodConfig::Filter { config, .. } => &config.detector.background,
+        }
+    }
+
+    /// Checks the configs.
+    ///
+    /// # Errors
+    /// The first invalid field.
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            MethodConfig::Relaxation { tracker, detector } => {
+                tracker.validate()?;
+                detector.validate()
+            }
+            MethodConfig::Mrf { config, .. } => config.validate(),
+            MethodConfig::Filter { config, .. } => config.validate(),
+        }
+    }
+
+    /// Learns the background by a first, read-only pass over `input` (the median of
+    /// `bootstrap_frames` frames spread over the selection, as `roadtrack detect`) and
+    /// builds the method's detector and tracker for frames like those of `info`.
+    ///
+    /// # Errors
+    /// An invalid config, an unreadable source.
+    pub fn build(self, input: &Path, options: &SourceOptions, info: &SourceInfo) -> Result<Built> {
+        self.validate()?;
+        let model = bootstrap_from_source(input, options, self.background().clone())?;
+        Ok(match self {
+            MethodConfig::Relaxation { tracker, detector } => Built {
+                detector: Some(Box::new(BackgroundDetector::with_model(*detector, model)?)),
+                tracker: BuiltTracker::Relaxation(RelaxationTracker::new(*tracker)?),
+            },
+            MethodConfig::Mrf { config, seed } => {
+                let mut t = MrfTracker::new(*config, info.width, info.height, seed)?;
+                t.set_background(model)?;
+                Built {
+                    detector: None,
+                    tracker: BuiltTracker::Mrf(Box::new(t)),
+                }
+            }
+            MethodConfig::Filter {
+                method,
+                config,
+                model: network,
+                seed,
+            } => Built {
+                detector: Some(Box::new(BackgroundDetector::with_model(
+                    config.detector.clone(),
+                    model,
+                )?)),
+                tracker: BuiltTracker::Filter(Box::new(FilterTracker::new(
+                    method, &config, seed, network,
+                )?)),
+            },
+        })
+    }
+}
+
+/// Tracks `input` (video, image folder, MOTChallenge sequence) with `method`: builds the
+/// method ([`MethodConfig::build`]), then runs the [`Pipeline`] over a second pass with
+/// `stages` and `sinks`. `progress(done, total)` after each frame (`total` 0 when unknown).
+///
+/// # Errors
+/// An invalid config, an unreadable source, a frame of another size, a stage or sink that
+/// fails.
+pub fn track_source<'a>(
+    input: &Path,
+    options: &SourceOptions,
+    method: MethodConfig,
+    stages: Vec<Box<dyn PointStage + 'a>>,
+    sinks: Vec<Box<dyn PointSink + 'a>>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<RunSummary> {
+    let info = source::open(input, options)?.info.clone();
+    let built = method.build(input, options, &info)?;
+    let frames = source::open(input, options)?;
+    let mut pipeline = Pipeline {
+        detector: built.detector,
+        tracker: built.tracker.boxed(),
+        stages,
+        sinks,
+    };
+    pipeline.run(frames, info.selected_frames.map(u64::from), progress)
+}
