@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Golden files for `roadtrack::metrics` parity with TrackEval (and py-motmetrics).
+"""Golden files for `roadtrack::eval` parity with TrackEval (and py-motmetrics).
 
 Writes ground-truth / tracker pairs and the metrics TrackEval computes on them into
 crates/roadtrack/tests/golden/metrics/ (see the README there for the exact command).
-The Rust tests (crates/roadtrack/src/metrics/golden_tests.rs) read these files and assert
+The Rust tests (crates/roadtrack/src/eval/golden_tests.rs) read these files and assert
 agreement to 1e-6 on every value; they never run Python.
 
     python scripts/golden_metrics.py                  # regenerate the golden files
