@@ -7,7 +7,7 @@
 //! - [`separation_success`] and [`separation_outcomes`]: seed 002's occlusion separation
 //!   success against visible area (Fig. 10).
 
-use super::assignment::linear_sum_assignment;
+use crate::assignment::linear_sum_assignment;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::io::matches::MatchRow;
@@ -343,7 +343,7 @@ pub fn trajectory_rmse(
         }
     }
     let pairs: Vec<(u64, u64)> =
-        super::assignment::max_score_assignment(&score, t_ids.len(), k_ids.len())?
+        crate::assignment::max_score_assignment(&score, t_ids.len(), k_ids.len())?
             .into_iter()
             .filter(|&(i, j)| score[i * k_ids.len() + j] > 0.0)
             .map(|(i, j)| (t_ids[i], k_ids[j]))
