@@ -5,7 +5,6 @@
 //! and decodes every format the installed ffmpeg knows (DEPENDENCY_NOTES.md §1: about
 //! 500 frames/s of 768×576 on one core here).
 
-use super::source::SourceOptions;
 use crate::error::{Error, Result};
 use image::RgbImage;
 use std::io::{Read, Write};
@@ -192,12 +191,13 @@ pub fn probe(path: &Path) -> Result<Probe> {
 }
 
 impl VideoReader {
-    /// Probes `path` and starts decoding; stops decoding after `options.end` when set.
-    pub fn open(path: &Path, options: &SourceOptions) -> Result<Self> {
+    /// Probes `path` and starts decoding; stops decoding after frame `end` (1-based) when
+    /// set.
+    pub fn open(path: &Path, end: Option<u32>) -> Result<Self> {
         let p = probe(path)?;
         let mut cmd = Command::new("ffmpeg");
         cmd.args(["-v", "error", "-nostdin", "-i"]).arg(path);
-        if let Some(end) = options.end {
+        if let Some(end) = end {
             cmd.args(["-frames:v", &end.to_string()]);
         }
         cmd.args(["-an", "-sn", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
@@ -505,16 +505,6 @@ impl VideoWriter {
         tmp.persist(&self.path)
             .map_err(|e| Error::io(&self.path, e.error))?;
         Ok(())
-    }
-}
-
-impl super::sink::FrameSink for VideoWriter {
-    fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
-        VideoWriter::write_frame(self, index, image)
-    }
-
-    fn finish(&mut self) -> Result<()> {
-        VideoWriter::finish(self)
     }
 }
 
