@@ -4,7 +4,8 @@
 //! means no partner. Two frame-1 vehicles may then choose the same frame-2 vehicle. The
 //! optional one-to-one rule forbids that.
 
-use super::update::{Probabilities, RelaxationProblem, Solution};
+use super::probabilities::{Probabilities, Solution};
+use super::problem::RelaxationProblem;
 use crate::io::matches::MatchRow;
 use serde::{Deserialize, Serialize};
 
@@ -185,30 +186,32 @@ fn one_to_one(
     (partner, prob)
 }
 
-/// The decision on a solved problem.
-pub(crate) fn decide(problem: &RelaxationProblem, sol: &Solution, rule: DecisionRule) -> Matching {
-    let g = &problem.graph;
-    let (o1, o2) = (&problem.order1[..], &problem.order2[..]);
-    let (partner, probability) = match rule {
-        DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
-        DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
-    };
-    let (backward_partner, backward_probability) = match &sol.q {
-        Some(q) => {
-            let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q, o2, o1);
-            (Some(a), Some(b))
+impl RelaxationProblem {
+    /// The decision on `sol` (argmax, or one-to-one).
+    pub fn decide(&self, sol: &Solution, rule: DecisionRule) -> Matching {
+        let g = &self.graph;
+        let (o1, o2) = (&self.order1[..], &self.order2[..]);
+        let (partner, probability) = match rule {
+            DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+            DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+        };
+        let (backward_partner, backward_probability) = match &sol.q {
+            Some(q) => {
+                let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q, o2, o1);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        };
+        Matching {
+            ids1: self.ids1.clone(),
+            ids2: self.ids2.clone(),
+            partner,
+            probability,
+            backward_partner,
+            backward_probability,
+            iterations: sol.iterations,
+            converged: sol.converged,
         }
-        None => (None, None),
-    };
-    Matching {
-        ids1: problem.ids1.clone(),
-        ids2: problem.ids2.clone(),
-        partner,
-        probability,
-        backward_partner,
-        backward_probability,
-        iterations: sol.iterations,
-        converged: sol.converged,
     }
 }
 

@@ -13,8 +13,10 @@
 //! | file | what | equations |
 //! | --- | --- | --- |
 //! | [`labels`] | candidate labels in the gate, forward and backward, as CSR arrays | 2–6, 12 |
+//! | [`probabilities`] | [`Probabilities`] of one direction, a solve's [`Solution`] | — |
 //! | [`initial`] | colour or uniform start | 7–11 |
 //! | [`support`] | neighbour-support lists (spatial grid + direct label comparison) and sums | 13–16 |
+//! | [`problem`] | [`RelaxationProblem`]: labels, support lists and start, built once | — |
 //! | [`update`] | one double-buffered iteration and the stop rule | 17–20 |
 //! | [`decision`] | argmax and the optional one-to-one decision → [`Matching`] | — |
 //! | [`tracker`] | [`RelaxationTracker`]: frames chained into tracks | — |
@@ -42,6 +44,8 @@ pub mod experiment;
 mod grid;
 pub mod initial;
 pub mod labels;
+pub mod probabilities;
+pub mod problem;
 pub mod scale;
 pub mod support;
 pub mod sweep;
@@ -51,10 +55,12 @@ pub mod update;
 pub use decision::{DecisionRule, Matching};
 pub use experiment::{ExperimentTable, Method, run_experiment};
 pub use labels::LabelGraph;
+pub use probabilities::{Probabilities, Solution};
+pub use problem::RelaxationProblem;
 pub use scale::{ScaleReport, bench_scale, generate_road_network_pair};
 pub use sweep::{SweepGrid, SweepResult, sweep};
 pub use tracker::{RelaxationTracker, TrackerConfig};
-pub use update::{Probabilities, RelaxationProblem, Solution, UpdateWeights};
+pub use update::UpdateWeights;
 
 use crate::detection::Detection;
 use crate::error::{Error, Result};
