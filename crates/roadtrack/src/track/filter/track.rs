@@ -14,7 +14,7 @@
 //! supported for a while → give each estimate the box of its nearest detection.
 
 use super::particle::{LikelihoodFactory, ParticleFilterConfig, ParticleFilterTracker};
-use super::phd::{PhdConfig, PhdTracker, StageTimes};
+use super::phd::{FilterStageTimes, PhdConfig, PhdTracker};
 use crate::detect::background::{Detector, DetectorConfig};
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -311,7 +311,7 @@ pub struct FilterTrackOutput {
     /// The foreground detections used.
     pub detections: Vec<Detection>,
     /// Wall time per filter stage (detection not included).
-    pub stage_times: StageTimes,
+    pub stage_times: FilterStageTimes,
     /// Wall time of foreground detection, s.
     pub detect_s: f64,
     /// The shared likelihood's window, px (`None` with per-object PF likelihoods).
@@ -552,7 +552,7 @@ impl Runner {
         })
     }
 
-    fn stage_times(&self) -> StageTimes {
+    fn stage_times(&self) -> FilterStageTimes {
         match &self.filter {
             Filter::Pf(t) => t.stage_times(),
             Filter::Phd(t) => t.stage_times(),

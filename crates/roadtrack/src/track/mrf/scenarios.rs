@@ -3,7 +3,7 @@
 use super::object_map::{NO_OBJECT, ObjectId, ObjectMap};
 use super::separation::{TruthRegion, occlusion_rows};
 use super::synthetic::{SynthObject, SynthScene};
-use super::{MrfConfig, MrfTracker, Variant};
+use super::{MrfConfig, MrfTracker, MrfVariant};
 use crate::detect::background_model::{BackgroundModel, bootstrap_from_frames};
 use crate::error::Result;
 use crate::eval::papers::separation_success;
@@ -125,7 +125,7 @@ pub(crate) fn group_scene() -> SynthScene {
 /// Objects 1 and 2 carry two distinct output ids at frame index `from` and the same two
 /// at frame index `to` (ids from the majority of each object's visible blocks).
 fn assert_two_ids_kept(
-    variant: Variant,
+    variant: MrfVariant,
     truth: &[Vec<TruthRegion>],
     maps: &[ObjectMap],
     from: usize,
@@ -150,7 +150,7 @@ fn assert_two_ids_kept(
 
 #[test]
 fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> {
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = crossing_scene().build(11);
         let (frames, truth) = seq.frames(44);
         let cfg = MrfConfig {
@@ -171,7 +171,7 @@ fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> 
 fn pedestrian_group_is_not_merged_when_visible_areas_are_at_least_ten_blocks() -> Result<()> {
     // The improved variant passes since its vector proposals are bounded around each
     // object's representative vector (`local_vector_tolerance_px`, `gibbs::proposals`).
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = side_by_side_scene().build(21);
         let (frames, truth) = seq.frames(40);
         let cfg = MrfConfig {
@@ -198,10 +198,10 @@ fn pedestrian_group_is_not_merged_when_visible_areas_are_at_least_ten_blocks() -
 #[ignore = "measurement for docs/MRF.md; prints the separation curves"]
 fn side_by_side_curves() -> Result<()> {
     for (variant, tol) in [
-        (Variant::Improved, 0),
-        (Variant::Improved, 1),
-        (Variant::Improved, 48),
-        (Variant::Legacy, 0),
+        (MrfVariant::Improved, 0),
+        (MrfVariant::Improved, 1),
+        (MrfVariant::Improved, 48),
+        (MrfVariant::Legacy, 0),
     ] {
         let seq = side_by_side_scene().build(21);
         let (frames, truth) = seq.frames(40);
@@ -229,7 +229,7 @@ fn side_by_side_curves() -> Result<()> {
 #[test]
 #[ignore = "known limitation, documented in docs/MRF.md; prints the separation curve"]
 fn converging_group_separation_curve() -> Result<()> {
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = group_scene().build(21);
         let (frames, truth) = seq.frames(60);
         let cfg = MrfConfig {
@@ -334,7 +334,7 @@ fn bench_numbers() -> Result<()> {
         );
     }
     // 2. End to end, one thread.
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()
@@ -448,7 +448,7 @@ fn crossing_cars_keep_distinct_ids_through_partial_occlusion_on_the_simulator() 
     );
     let cfg = MrfConfig::default();
     let background = bootstrap_from_frames(&frames, cfg.background.clone())?;
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()

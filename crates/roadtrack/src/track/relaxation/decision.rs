@@ -217,7 +217,7 @@ impl RelaxationProblem {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{RelaxationConfig, Variant, match_vehicles};
+    use super::super::{RelaxationConfig, RelaxationVariant, match_vehicles};
     use super::*;
     use crate::Result;
     use crate::detection::Detection;
@@ -306,7 +306,7 @@ mod tests {
         // iteration while λ_p keeps its weight (eq. 18). Colour start: P = 21 675/24 375 =
         // 0.889 vs 2700/24 375 = 0.111, ratio 8 → after k iterations 8 · 0.5^k: λ_p wins
         // from k = 4. Documented: the method needs neighbours; with A ≥ 1 the start decides.
-        for v in Variant::ALL {
+        for v in RelaxationVariant::ALL {
             let cfg = RelaxationConfig {
                 variant: v,
                 ..Default::default()
@@ -353,7 +353,7 @@ mod tests {
         assert!(m.contains("variant `bidirectional`"), "{m}");
         // The uniform variants do not need colour.
         let uni = RelaxationConfig {
-            variant: Variant::Bidirectional,
+            variant: RelaxationVariant::Bidirectional,
             ..Default::default()
         };
         assert!(match_vehicles(std::slice::from_ref(&a), &no_colour, &uni).is_ok());

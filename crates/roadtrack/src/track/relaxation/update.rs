@@ -198,7 +198,9 @@ fn update_direction(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{DecisionRule, Matching, RelaxationConfig, Variant, match_vehicles};
+    use super::super::{
+        DecisionRule, Matching, RelaxationConfig, RelaxationVariant, match_vehicles,
+    };
     use super::*;
     use crate::detection::Detection;
     use crate::error::Result;
@@ -240,7 +242,7 @@ mod tests {
         let f1 = [det(1, 0.0, 0.0, [0.0; 3]), det(2, 30.0, 0.0, [0.0; 3])];
         let f2 = [det(1, 10.0, 0.0, [0.0; 3]), det(2, 40.0, 0.0, [0.0; 3])];
         let cfg = RelaxationConfig {
-            variant: Variant::Bidirectional,
+            variant: RelaxationVariant::Bidirectional,
             ..Default::default()
         };
         let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
@@ -270,7 +272,7 @@ mod tests {
         let f1 = [det(1, 0.0, 0.0, [0.0; 3]), det(2, 30.0, 0.0, [0.0; 3])];
         let f2 = [det(1, 10.0, 0.0, [0.0; 3]), det(2, 40.0, 0.0, [0.0; 3])];
         let cfg = RelaxationConfig {
-            variant: Variant::Unidirectional,
+            variant: RelaxationVariant::Unidirectional,
             ..Default::default()
         };
         let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
@@ -356,7 +358,7 @@ mod tests {
         #[test]
         fn probabilities_stay_distributions((f1, f2) in arbitrary_pair(), v in 0usize..4,
                                             a in 0.0..1.0f64, b in 0.0..10.0f64, c in 0.0..10.0f64) {
-            let cfg = RelaxationConfig { variant: Variant::ALL[v], own_weight: a,
+            let cfg = RelaxationConfig { variant: RelaxationVariant::ALL[v], own_weight: a,
                 forward_support_weight: b, backward_support_weight: c, ..Default::default() };
             let prob = RelaxationProblem::new(&f1, &f2, &cfg).expect("problem");
             let mut sol = prob.initial();
@@ -373,7 +375,7 @@ mod tests {
         /// of the swapped problem are the backward ones of the original, bit for bit.
         #[test]
         fn swapping_frames_mirrors_the_bidirectional_result((f1, f2) in arbitrary_pair(), colour in any::<bool>()) {
-            let cfg = RelaxationConfig { variant: if colour { Variant::ColourBidirectional } else { Variant::Bidirectional }, ..Default::default() };
+            let cfg = RelaxationConfig { variant: if colour { RelaxationVariant::ColourBidirectional } else { RelaxationVariant::Bidirectional }, ..Default::default() };
             let ab = RelaxationProblem::new(&f1, &f2, &cfg).expect("problem");
             let ba = RelaxationProblem::new(&f2, &f1, &cfg).expect("problem");
             prop_assert_eq!(&ab.graph.swapped(), &ba.graph);
