@@ -28,7 +28,7 @@ use roadtrack::io::source::{self, SourceOptions};
 use roadtrack::likelihood::Likelihood;
 use roadtrack::track::filter::config::LikelihoodKind;
 use roadtrack::track::filter::motion::ConstantVelocity;
-use roadtrack::track::filter::phd::StageTimes;
+use roadtrack::track::filter::phd::FilterStageTimes;
 use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, FilterTracker, FrameCount};
 use roadtrack::track::pipeline::run_frames;
 use roadtrack::track_point::TrackPoint;
@@ -202,7 +202,7 @@ struct FilterRun {
     points: Vec<TrackPoint>,
     counts: Vec<FrameCount>,
     detections: Vec<Detection>,
-    stage_times: StageTimes,
+    stage_times: FilterStageTimes,
     detect_s: f64,
     window_px: Option<(u32, u32)>,
 }

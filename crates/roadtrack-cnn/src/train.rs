@@ -255,15 +255,6 @@ pub fn patches_from_folders(
     Ok(patches)
 }
 
-/// Intersection over union of two boxes.
-fn iou(a: &BBox, b: &BBox) -> f64 {
-    let w = (a.right().min(b.right()) - a.left.max(b.left)).max(0.0);
-    let h = (a.bottom().min(b.bottom()) - a.top.max(b.top)).max(0.0);
-    let inter = w * h;
-    let union = a.area() + b.area() - inter;
-    if union > 0.0 { inter / union } else { 0.0 }
-}
-
 /// Cuts positives around a MOTChallenge sequence's ground-truth boxes of the preset's class
 /// and samples negatives away from every ground-truth box (seeded).
 ///
@@ -352,7 +343,7 @@ pub fn patches_from_sequence(sequence: &Path, config: &TrainConfig) -> Result<Pa
                 let window = BBox::from_centre(c, ww, wh);
                 if all
                     .iter()
-                    .all(|b| iou(b, &window) <= config.max_negative_iou)
+                    .all(|b| b.iou(&window) <= config.max_negative_iou)
                 {
                     patches.push_stretched(&frame.image, window, 0, &prep);
                     break;
@@ -626,12 +617,5 @@ mod tests {
         let mut data = synthetic_patches(4, 16, 12, 3);
         data.labels.iter_mut().for_each(|l| *l = 1);
         assert!(train(&data, &quick(), &mut |_| {}).is_err());
-    }
-
-    #[test]
-    fn iou_of_identical_and_disjoint_boxes() {
-        let a = BBox::new(0.0, 0.0, 10.0, 10.0);
-        assert!((iou(&a, &a) - 1.0).abs() < 1e-12);
-        assert_eq!(iou(&a, &BBox::new(20.0, 0.0, 5.0, 5.0)), 0.0);
     }
 }

@@ -112,7 +112,7 @@ pub struct SimConfig {
     /// The `oblique` view.
     pub oblique: ObliqueConfig,
     /// Sensor, illumination, shadows, jitter.
-    pub render: RenderConfig,
+    pub render: SimRenderConfig,
     /// Simulated detector (`det/det.txt`, `det/detections.csv`).
     pub detections: DetectionNoiseConfig,
 }
@@ -137,7 +137,7 @@ impl Default for SimConfig {
             pedestrians: PedestrianConfig::default(),
             aerial: AerialConfig::default(),
             oblique: ObliqueConfig::default(),
-            render: RenderConfig::default(),
+            render: SimRenderConfig::default(),
             detections: DetectionNoiseConfig::default(),
         }
     }
@@ -526,7 +526,7 @@ impl Default for ObliqueConfig {
 /// Image formation: sensor noise, illumination, shadows, jitter.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct RenderConfig {
+pub struct SimRenderConfig {
     /// Sensor noise, sd in 8-bit grey levels per channel (Gaussian approximation). Default 3.
     pub noise_sd: f64,
     /// Amplitude of the slow global illumination drift (relative gain). Default 0.06.
@@ -543,7 +543,7 @@ pub struct RenderConfig {
     pub camera_jitter_px: f64,
 }
 
-impl Default for RenderConfig {
+impl Default for SimRenderConfig {
     fn default() -> Self {
         Self {
             noise_sd: 3.0,
@@ -886,7 +886,7 @@ impl SimConfig {
                 && nonneg(r.camera_jitter_px)
                 && r.sun_elevation_deg > 0.0
                 && r.sun_elevation_deg <= 90.0,
-            "RenderConfig",
+            "SimRenderConfig",
             "noise_sd",
             "noise, drift (< 0.5), period, jitter and sun elevation (0, 90] out of range",
         )?;

@@ -33,8 +33,8 @@ pub mod traffic;
 
 pub use config::{
     AerialConfig, CrossingConfig, DetectionNoiseConfig, ImageFormat, IntersectionConfig,
-    ObliqueConfig, PedestrianConfig, RenderConfig, RoadConfig, SceneKind, SimConfig, VehicleConfig,
-    ViewKind,
+    ObliqueConfig, PedestrianConfig, RoadConfig, SceneKind, SimConfig, SimRenderConfig,
+    VehicleConfig, ViewKind,
 };
 pub use external::ExternalTrajectories;
 pub use output::{
@@ -46,7 +46,7 @@ pub use pairs::{PairsConfig, PairsSummary, write_pairs};
 use camera::Camera;
 use rand::RngExt;
 use rand_distr::StandardNormal;
-use render::Renderer;
+use render::SceneRenderer;
 use roadtrack_core::calibration::Calibration;
 use roadtrack_core::class::ObjectClass;
 use roadtrack_core::detection::Detection;
@@ -155,7 +155,7 @@ pub struct Simulation {
     scene: Scene,
     camera: Camera,
     calibration: Calibration,
-    renderer: Renderer,
+    renderer: SceneRenderer,
     next_frame: u32,
     n_frames: u32,
     steps_per_frame: u32,
@@ -239,7 +239,7 @@ impl Simulation {
     ) -> Result<Self> {
         let camera = Camera::new(config, &scene, config.width, config.height)?;
         let calibration = camera.calibration()?;
-        let renderer = Renderer::new(&scene, &camera, config, seed)?;
+        let renderer = SceneRenderer::new(&scene, &camera, config, seed)?;
         Ok(Self {
             config: config.clone(),
             seed,

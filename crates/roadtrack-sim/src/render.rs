@@ -8,7 +8,7 @@
 //! faces cover when drawn alone, inside the image) that no nearer object covers.
 
 use super::camera::{Camera, Vec3};
-use super::config::{RenderConfig, SimConfig};
+use super::config::{SimConfig, SimRenderConfig};
 use super::scene::{Area, Scene, Surface};
 use super::traffic::AgentState;
 use image::RgbImage;
@@ -439,13 +439,13 @@ fn surface_colour(surface: Surface, x: f64, y: f64, salt: u64) -> [f64; 3] {
 
 /// Renders frames of one sequence.
 #[derive(Debug, Clone)]
-pub struct Renderer {
+pub struct SceneRenderer {
     width: usize,
     height: usize,
     margin: usize,
     /// Background with `margin` px on every side, RGB.
     background: Vec<u8>,
-    config: RenderConfig,
+    config: SimRenderConfig,
     seed: u64,
     sun: Vec3,
     qbuf: Vec<f32>,
@@ -455,7 +455,7 @@ pub struct Renderer {
     drift_phase: f64,
 }
 
-impl Renderer {
+impl SceneRenderer {
     /// Renders the static background of `scene` seen by `camera` (once per sequence).
     pub fn new(
         scene: &Scene,
@@ -790,7 +790,7 @@ mod tests {
         }
     }
 
-    fn setup(view: ViewKind) -> (Renderer, Camera) {
+    fn setup(view: ViewKind) -> (SceneRenderer, Camera) {
         let cfg = SimConfig {
             scene: SceneKind::Crossing,
             view,
@@ -798,7 +798,10 @@ mod tests {
         };
         let scene = Scene::build(&cfg, 0.0);
         let cam = Camera::new(&cfg, &scene, cfg.width, cfg.height).expect("camera");
-        (Renderer::new(&scene, &cam, &cfg, 1).expect("renderer"), cam)
+        (
+            SceneRenderer::new(&scene, &cam, &cfg, 1).expect("renderer"),
+            cam,
+        )
     }
 
     #[test]

@@ -49,9 +49,9 @@ fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
 #[test]
 fn same_seed_gives_byte_identical_folders_and_another_seed_does_not() -> Result<()> {
     let cfg = SimConfig {
-        render: RenderConfig {
+        render: SimRenderConfig {
             camera_jitter_px: 1.0,
-            ..RenderConfig::default()
+            ..SimRenderConfig::default()
         },
         ..small(SceneKind::Crossing, ViewKind::Oblique, 4)
     };

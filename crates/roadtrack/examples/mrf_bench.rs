@@ -12,7 +12,7 @@
 
 use roadtrack::detect::background_model::{BackgroundModel, bootstrap_positions};
 use roadtrack::frame::Frame;
-use roadtrack::track::mrf::{MrfConfig, Variant, bench_mrf};
+use roadtrack::track::mrf::{MrfConfig, MrfVariant, bench_mrf};
 use roadtrack_sim::{SimConfig, ViewKind, simulate_in_memory};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         simulate_in_memory(&config, 0)?.frames
     };
-    for variant in [Variant::Improved, Variant::Legacy] {
+    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()

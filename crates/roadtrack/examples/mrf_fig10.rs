@@ -21,7 +21,7 @@ use roadtrack::eval::{ClassMode, EvalConfig, evaluate, rows_from_points};
 use roadtrack::frame::Frame;
 use roadtrack::track::mrf::object_map::ObjectMap;
 use roadtrack::track::mrf::separation::{TruthRegion, separated, truth_regions_from_owner};
-use roadtrack::track::mrf::{MrfConfig, MrfTracker, Variant};
+use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
 use roadtrack_sim::{SimConfig, Simulation, TruthRow, ViewKind, gt_rows};
 use roadtrack_viz::plot::{Series, line_chart};
 use std::fmt::Write as _;
@@ -148,7 +148,7 @@ fn tolerance() -> u32 {
         .unwrap_or(MrfConfig::default().local_vector_tolerance_px)
 }
 
-fn track(seq: &Sequence, variant: Variant, seed: u64) -> roadtrack::Result<Run> {
+fn track(seq: &Sequence, variant: MrfVariant, seed: u64) -> roadtrack::Result<Run> {
     let config = MrfConfig {
         variant,
         local_vector_tolerance_px: tolerance(),
@@ -227,7 +227,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let png = args.get(3).map(PathBuf::from);
     std::fs::create_dir_all(&out)?;
     let border = MrfConfig::default().border_blocks;
-    let variants = [Variant::Improved, Variant::Legacy];
+    let variants = [MrfVariant::Improved, MrfVariant::Legacy];
     let mut csv = String::from("scene,variant,area_lo,area_hi,trials,successes,rate\n");
     let mut mcsv = String::from("scene,seed,variant,HOTA,MOTA,IDF1,IDSW,gt_ids,tracker_ids\n");
     let mut series = Vec::new();

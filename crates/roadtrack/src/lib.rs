@@ -8,13 +8,16 @@
 //!
 //! Layers (ARCHITECTURE.md): the shared types, formats and frame sources of
 //! `roadtrack-core`, re-exported here under their own names; [`detect`] (frame →
-//! detections); [`track`] (the methods); [`likelihood`]; [`eval`]; [`analysis`].
+//! detections); [`track`] (the methods); [`likelihood`]; [`eval`]; [`analysis`]; and the one
+//! linear-assignment solver both the metrics and the relaxation baselines use
+//! ([`assignment`]).
 
 pub use roadtrack_core::{
     calibration, class, config, detection, error, frame, geometry, io, rng, track_point,
 };
 
 pub mod analysis;
+pub mod assignment;
 pub mod bench;
 pub mod detect;
 pub mod eval;

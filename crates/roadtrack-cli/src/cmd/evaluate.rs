@@ -332,7 +332,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
 
     // Occlusion separation success.
     if let Some(o) = &args.occlusion {
-        let bins = separation_success(&read_occlusion(o)?);
+        let bins = separation_success(&read_occlusion(o)?, None);
         text.push_str(&separation_text(&bins));
         json_out.insert("separation".into(), serde_json::to_value(&bins)?);
     }

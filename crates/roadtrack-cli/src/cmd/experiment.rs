@@ -5,7 +5,9 @@ use super::matching::RelaxArgs;
 use crate::common::Ui;
 use anyhow::{Result, bail};
 use roadtrack::track::relaxation::experiment::problem_dirs;
-use roadtrack::track::relaxation::{DecisionRule, Method, Variant, run_experiment};
+use roadtrack::track::relaxation::{
+    DecisionRule, ExperimentMethod, RelaxationVariant, run_experiment,
+};
 use std::path::PathBuf;
 
 /// Score relaxation variants and baselines on folders of two-frame problems.
@@ -34,16 +36,20 @@ pub struct Args {
     pub output: PathBuf,
     /// Comma-separated methods.
     #[arg(long, value_delimiter = ',', value_parser = parse_method, default_value = "a,b,c,d,nn,oa")]
-    pub methods: Vec<Method>,
+    pub methods: Vec<ExperimentMethod>,
     #[command(flatten)]
     pub relax: RelaxArgs,
 }
 
 /// Parses a method name (see the command's help).
-fn parse_method(s: &str) -> Result<Method, String> {
+fn parse_method(s: &str) -> Result<ExperimentMethod, String> {
     match s {
-        "nn" | "nearest-neighbour" | "nearest-neighbor" => return Ok(Method::NearestNeighbour),
-        "oa" | "optimal-assignment" | "hungarian" => return Ok(Method::OptimalAssignment),
+        "nn" | "nearest-neighbour" | "nearest-neighbor" => {
+            return Ok(ExperimentMethod::NearestNeighbour);
+        }
+        "oa" | "optimal-assignment" | "hungarian" => {
+            return Ok(ExperimentMethod::OptimalAssignment);
+        }
         _ => {}
     }
     let (v, decision) = match s.strip_suffix("+one-to-one") {
@@ -51,18 +57,18 @@ fn parse_method(s: &str) -> Result<Method, String> {
         None => (s, DecisionRule::Argmax),
     };
     let variant = match v {
-        "a" => Variant::Unidirectional,
-        "b" => Variant::ColourUnidirectional,
-        "c" => Variant::Bidirectional,
-        "d" => Variant::ColourBidirectional,
-        other => other.parse::<Variant>().map_err(|_| {
+        "a" => RelaxationVariant::Unidirectional,
+        "b" => RelaxationVariant::ColourUnidirectional,
+        "c" => RelaxationVariant::Bidirectional,
+        "d" => RelaxationVariant::ColourBidirectional,
+        other => other.parse::<RelaxationVariant>().map_err(|_| {
             format!(
                 "unknown method `{s}`; expected a, b, c, d (or a variant's name), \
                  optionally with +one-to-one, nn or oa"
             )
         })?,
     };
-    Ok(Method::Relaxation(variant, decision))
+    Ok(ExperimentMethod::Relaxation(variant, decision))
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
@@ -106,20 +112,20 @@ mod tests {
     fn method_names_parse() {
         assert_eq!(
             parse_method("d"),
-            Ok(Method::Relaxation(
-                Variant::ColourBidirectional,
+            Ok(ExperimentMethod::Relaxation(
+                RelaxationVariant::ColourBidirectional,
                 DecisionRule::Argmax
             ))
         );
         assert_eq!(
             parse_method("bidirectional+one-to-one"),
-            Ok(Method::Relaxation(
-                Variant::Bidirectional,
+            Ok(ExperimentMethod::Relaxation(
+                RelaxationVariant::Bidirectional,
                 DecisionRule::OneToOne
             ))
         );
-        assert_eq!(parse_method("oa"), Ok(Method::OptimalAssignment));
-        assert_eq!(parse_method("nn"), Ok(Method::NearestNeighbour));
+        assert_eq!(parse_method("oa"), Ok(ExperimentMethod::OptimalAssignment));
+        assert_eq!(parse_method("nn"), Ok(ExperimentMethod::NearestNeighbour));
         assert!(parse_method("e").is_err());
         // Every name the table prints parses back.
         for m in [

@@ -3,7 +3,7 @@
 use crate::common::{Ui, load_config};
 use anyhow::Result;
 use roadtrack::io::points::{read_measurements, write_estimates};
-use roadtrack::track::filter::Region;
+use roadtrack::track::filter::SurveillanceRegion;
 use roadtrack::track::filter::points::{PointFilterConfig, filter_points_with_progress};
 use std::path::PathBuf;
 
@@ -30,7 +30,7 @@ pub struct Args {
     /// Surveillance region (clutter and births are uniform over it). Default: the
     /// measurements' bounding box grown by 10 % per side.
     #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region, allow_hyphen_values = true)]
-    pub region: Option<Region>,
+    pub region: Option<SurveillanceRegion>,
     /// Time between steps (default 1).
     #[arg(long, value_name = "S")]
     pub dt: Option<f64>,
@@ -64,7 +64,7 @@ pub struct Args {
 }
 
 /// Parses `X0,Y0,X1,Y1` and checks `X1 > X0`, `Y1 > Y0`.
-fn parse_region(s: &str) -> std::result::Result<Region, String> {
+fn parse_region(s: &str) -> std::result::Result<SurveillanceRegion, String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|p| {
@@ -79,7 +79,7 @@ fn parse_region(s: &str) -> std::result::Result<Region, String> {
             v.len()
         ));
     };
-    let r = Region::new(x0, y0, x1, y1);
+    let r = SurveillanceRegion::new(x0, y0, x1, y1);
     if !r.is_valid() {
         return Err(format!(
             "X1 > X0 and Y1 > Y0 (finite) are required, found {x0},{y0},{x1},{y1}"

@@ -4,7 +4,9 @@
 use crate::common::{Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::io::{detections::read_detections, matches::write_matches};
-use roadtrack::track::relaxation::{DecisionRule, RelaxationConfig, Variant, match_vehicles};
+use roadtrack::track::relaxation::{
+    DecisionRule, RelaxationConfig, RelaxationVariant, match_vehicles,
+};
 use std::path::{Path, PathBuf};
 
 /// Every parameter of `RelaxationConfig` as a flag; each overrides `--config`.
@@ -63,13 +65,13 @@ pub enum VariantArg {
     Unidirectional,
 }
 
-impl From<VariantArg> for Variant {
+impl From<VariantArg> for RelaxationVariant {
     fn from(v: VariantArg) -> Self {
         match v {
-            VariantArg::ColourBidirectional => Variant::ColourBidirectional,
-            VariantArg::Bidirectional => Variant::Bidirectional,
-            VariantArg::ColourUnidirectional => Variant::ColourUnidirectional,
-            VariantArg::Unidirectional => Variant::Unidirectional,
+            VariantArg::ColourBidirectional => RelaxationVariant::ColourBidirectional,
+            VariantArg::Bidirectional => RelaxationVariant::Bidirectional,
+            VariantArg::ColourUnidirectional => RelaxationVariant::ColourUnidirectional,
+            VariantArg::Unidirectional => RelaxationVariant::Unidirectional,
         }
     }
 }

@@ -45,7 +45,7 @@ pub enum LikelihoodArg {
 
 /// MRF model variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum MrfVariant {
+pub enum MrfVariantArg {
     /// 2000: representative vector per object, no smoothness term.
     Legacy,
     /// 2004: local vectors with the smoothness term.
@@ -109,7 +109,7 @@ pub struct Args {
     pub max_missed_frames: Option<u32>,
     /// MRF: model variant (overrides the config).
     #[arg(long, value_enum)]
-    pub mrf_variant: Option<MrfVariant>,
+    pub mrf_variant: Option<MrfVariantArg>,
     /// pf/phd: the likelihood h(y | x).
     #[arg(long, value_enum, default_value_t = LikelihoodArg::Colour)]
     pub likelihood: LikelihoodArg,
@@ -172,8 +172,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             let mut config: MrfConfig = load_config(args.config.as_deref())?;
             if let Some(v) = args.mrf_variant {
                 config.variant = match v {
-                    MrfVariant::Legacy => roadtrack::track::mrf::Variant::Legacy,
-                    MrfVariant::Improved => roadtrack::track::mrf::Variant::Improved,
+                    MrfVariantArg::Legacy => roadtrack::track::mrf::MrfVariant::Legacy,
+                    MrfVariantArg::Improved => roadtrack::track::mrf::MrfVariant::Improved,
                 };
             }
             MethodConfig::Mrf {

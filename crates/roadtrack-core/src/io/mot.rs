@@ -175,12 +175,15 @@ fn read_lines(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
 }
 
-/// Reads a MOTChallenge tracks file.
-///
-/// # Errors
-/// Names file, line and column of a missing or non-numeric field, a frame below 1, a
-/// negative id or size, and an id repeated within a frame.
-pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
+/// The reader behind [`read_tracks`] and [`read_gt`]: for every non-blank line, its frame,
+/// id and box (fields 1–6), then `row` makes the record from them and the fields after the
+/// box (`row(line, fields, frame, id, bbox)`). Rows come back sorted by (frame, id) with an
+/// id repeated within a frame rejected ([`sort_unique`]).
+fn read_rows<T>(
+    path: &Path,
+    row: impl Fn(u64, &[&str], u32, u64, BBox) -> Result<T>,
+    key: impl Fn(&T) -> (u32, u64),
+) -> Result<Vec<T>> {
     let text = read_lines(path)?;
     let mut out = Vec::new();
     let mut lines = Vec::new();
@@ -191,20 +194,35 @@ pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
         let frame = frame_of(path, line, f)?;
         let id = id_of(path, line, f)?;
         let bbox = bbox_of(path, line, f)?;
-        let conf = if f.len() > 6 {
-            field_f64(path, line, f, 6, "conf")?
-        } else {
-            1.0
-        };
-        out.push(MotTrackRow {
-            frame,
-            id,
-            bbox,
-            conf,
-        });
+        out.push(row(line, f, frame, id, bbox)?);
         lines.push(line);
     }
-    sort_unique(path, out, lines, |r| (r.frame, r.id))
+    sort_unique(path, out, lines, key)
+}
+
+/// Reads a MOTChallenge tracks file.
+///
+/// # Errors
+/// Names file, line and column of a missing or non-numeric field, a frame below 1, a
+/// negative id or size, and an id repeated within a frame.
+pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
+    read_rows(
+        path,
+        |line, f, frame, id, bbox| {
+            let conf = if f.len() > 6 {
+                field_f64(path, line, f, 6, "conf")?
+            } else {
+                1.0
+            };
+            Ok(MotTrackRow {
+                frame,
+                id,
+                bbox,
+                conf,
+            })
+        },
+        |r| (r.frame, r.id),
+    )
 }
 
 /// Reads a MOTChallenge ground-truth file. Missing trailing fields default to
@@ -214,59 +232,52 @@ pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
 /// As [`read_tracks`], plus a class that is not a positive integer and a visibility outside
 /// `[0, 1]`.
 pub fn read_gt(path: &Path) -> Result<Vec<MotGtRow>> {
-    let text = read_lines(path)?;
-    let mut out = Vec::new();
-    let mut lines = Vec::new();
-    for (i, l) in text.lines().enumerate() {
-        let line = i as u64 + 1;
-        let Some(f) = fields(l) else { continue };
-        let f = f.as_slice();
-        let frame = frame_of(path, line, f)?;
-        let id = id_of(path, line, f)?;
-        let bbox = bbox_of(path, line, f)?;
-        let consider = if f.len() > 6 {
-            field_f64(path, line, f, 6, "consider")? != 0.0
-        } else {
-            true
-        };
-        let class = if f.len() > 7 {
-            let c = field_f64(path, line, f, 7, "class")?;
-            if c < 1.0 || c.fract() != 0.0 {
+    read_rows(
+        path,
+        |line, f, frame, id, bbox| {
+            let consider = if f.len() > 6 {
+                field_f64(path, line, f, 6, "consider")? != 0.0
+            } else {
+                true
+            };
+            let class = if f.len() > 7 {
+                let c = field_f64(path, line, f, 7, "class")?;
+                if c < 1.0 || c.fract() != 0.0 {
+                    return Err(Error::parse(
+                        path,
+                        line,
+                        "class",
+                        format!("class must be a positive integer, found {}", f[7]),
+                    ));
+                }
+                c as u32
+            } else {
+                1
+            };
+            let visibility = if f.len() > 8 {
+                field_f64(path, line, f, 8, "visibility")?
+            } else {
+                1.0
+            };
+            if !(0.0..=1.0).contains(&visibility) {
                 return Err(Error::parse(
                     path,
                     line,
-                    "class",
-                    format!("class must be a positive integer, found {}", f[7]),
+                    "visibility",
+                    format!("visibility {visibility} outside [0, 1]"),
                 ));
             }
-            c as u32
-        } else {
-            1
-        };
-        let visibility = if f.len() > 8 {
-            field_f64(path, line, f, 8, "visibility")?
-        } else {
-            1.0
-        };
-        if !(0.0..=1.0).contains(&visibility) {
-            return Err(Error::parse(
-                path,
-                line,
-                "visibility",
-                format!("visibility {visibility} outside [0, 1]"),
-            ));
-        }
-        out.push(MotGtRow {
-            frame,
-            id,
-            bbox,
-            consider,
-            class,
-            visibility,
-        });
-        lines.push(line);
-    }
-    sort_unique(path, out, lines, |r| (r.frame, r.id))
+            Ok(MotGtRow {
+                frame,
+                id,
+                bbox,
+                consider,
+                class,
+                visibility,
+            })
+        },
+        |r| (r.frame, r.id),
+    )
 }
 
 /// Reads MOTChallenge public detections (`det/det.txt`): the id field is ignored and each

@@ -87,6 +87,16 @@ impl FrameSink for PngFolder {
     }
 }
 
+impl FrameSink for VideoWriter {
+    fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+        VideoWriter::write_frame(self, index, image)
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        VideoWriter::finish(self)
+    }
+}
+
 /// A video sink that starts ffmpeg when the first frame tells the size.
 #[derive(Debug)]
 struct LazyVideo {

@@ -167,7 +167,7 @@ pub fn open(path: &Path, options: &SourceOptions) -> Result<FrameSource> {
             )
         }
     } else {
-        let reader = VideoReader::open(path, options)?;
+        let reader = VideoReader::open(path, options.end)?;
         let fps = options.fps.unwrap_or(reader.fps);
         let total = reader.total_frames;
         let info = SourceInfo {

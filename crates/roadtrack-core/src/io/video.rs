@@ -5,13 +5,13 @@
 //! and decodes every format the installed ffmpeg knows (DEPENDENCY_NOTES.md §1: about
 //! 500 frames/s of 768×576 on one core here).
 
-use super::source::SourceOptions;
 use crate::error::{Error, Result};
 use image::RgbImage;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
 use std::sync::OnceLock;
+use std::thread::JoinHandle;
 
 const INSTALL_HINT: &str =
     "install ffmpeg (Debian/Ubuntu: `sudo apt-get install ffmpeg`, or run scripts/setup.sh)";
@@ -20,9 +20,8 @@ const INSTALL_HINT: &str =
 #[derive(Debug)]
 pub struct VideoReader {
     path: PathBuf,
-    child: Option<Child>,
+    ffmpeg: Ffmpeg,
     stdout: Option<ChildStdout>,
-    stderr: Option<std::thread::JoinHandle<String>>,
     /// Frame width, px.
     pub width: u32,
     /// Frame height, px.
@@ -64,16 +63,60 @@ fn spawn_error(program: &'static str, e: &std::io::Error) -> Error {
     }
 }
 
-/// Reads the child's stderr on a thread (so a chatty ffmpeg never blocks on a full pipe);
-/// the text is joined when the child is finished, for error messages.
-fn collect_stderr(child: &mut Child) -> Option<std::thread::JoinHandle<String>> {
-    child.stderr.take().map(|mut s| {
-        std::thread::spawn(move || {
-            let mut buf = String::new();
-            let _ = s.read_to_string(&mut buf);
-            buf
-        })
-    })
+/// A running `ffmpeg` with its stderr read on a thread (so a chatty ffmpeg never blocks on
+/// a full pipe; the text is joined when it is finished, for error messages). The one place
+/// where [`VideoReader`] and [`VideoWriter`] start and stop the program.
+#[derive(Debug)]
+struct Ffmpeg {
+    child: Option<Child>,
+    stderr: Option<JoinHandle<String>>,
+}
+
+impl Ffmpeg {
+    /// Starts `cmd` and returns the process with its piped stdin and stdout (when piped).
+    fn spawn(cmd: &mut Command) -> Result<(Self, Option<ChildStdin>, Option<ChildStdout>)> {
+        let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
+        let stdin = child.stdin.take();
+        let stdout = child.stdout.take();
+        let stderr = child.stderr.take().map(|mut s| {
+            std::thread::spawn(move || {
+                let mut buf = String::new();
+                let _ = s.read_to_string(&mut buf);
+                buf
+            })
+        });
+        let ffmpeg = Self {
+            child: Some(child),
+            stderr,
+        };
+        Ok((ffmpeg, stdin, stdout))
+    }
+
+    /// Waits for ffmpeg to exit (the caller closes its pipes first). `Some((status,
+    /// messages))` when it failed; `None` when it succeeded or was already waited for.
+    ///
+    /// # Errors
+    /// The wait itself failed (named after `path`, the video).
+    fn wait(&mut self, path: &Path) -> Result<Option<(ExitStatus, String)>> {
+        let Some(mut c) = self.child.take() else {
+            return Ok(None);
+        };
+        let status = c.wait().map_err(|e| Error::io(path, e))?;
+        let stderr = self
+            .stderr
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        Ok((!status.success()).then_some((status, stderr)))
+    }
+
+    /// Kills ffmpeg when it still runs and reaps it (a reader or writer dropped early).
+    fn kill(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
 }
 
 /// Whether `ffmpeg` and `ffprobe` can be run.
@@ -148,26 +191,24 @@ pub fn probe(path: &Path) -> Result<Probe> {
 }
 
 impl VideoReader {
-    /// Probes `path` and starts decoding; stops decoding after `options.end` when set.
-    pub fn open(path: &Path, options: &SourceOptions) -> Result<Self> {
+    /// Probes `path` and starts decoding; stops decoding after frame `end` (1-based) when
+    /// set.
+    pub fn open(path: &Path, end: Option<u32>) -> Result<Self> {
         let p = probe(path)?;
         let mut cmd = Command::new("ffmpeg");
         cmd.args(["-v", "error", "-nostdin", "-i"]).arg(path);
-        if let Some(end) = options.end {
+        if let Some(end) = end {
             cmd.args(["-frames:v", &end.to_string()]);
         }
         cmd.args(["-an", "-sn", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
-        let stdout = child.stdout.take();
-        let stderr = collect_stderr(&mut child);
+        let (ffmpeg, _, stdout) = Ffmpeg::spawn(&mut cmd)?;
         Ok(Self {
             path: path.to_owned(),
-            child: Some(child),
+            ffmpeg,
             stdout,
-            stderr,
             width: p.width,
             height: p.height,
             fps: p.fps,
@@ -180,23 +221,13 @@ impl VideoReader {
     fn finish(&mut self) -> Result<()> {
         self.done = true;
         self.stdout = None;
-        let status = match self.child.take() {
-            Some(mut c) => c.wait().map_err(|e| Error::io(&self.path, e))?,
-            None => return Ok(()),
-        };
-        let stderr = self
-            .stderr
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
-        if status.success() {
-            Ok(())
-        } else {
-            Err(Error::Frame {
+        match self.ffmpeg.wait(&self.path)? {
+            None => Ok(()),
+            Some((status, stderr)) => Err(Error::Frame {
                 path: self.path.clone(),
                 frame: self.frames_read + 1,
                 message: format!("ffmpeg failed ({status}): {}", stderr.trim()),
-            })
+            }),
         }
     }
 }
@@ -313,9 +344,8 @@ fn choose_codec(ext: &str, encoders: &str) -> Result<(&'static str, &'static [&'
 pub struct VideoWriter {
     path: PathBuf,
     tmp: Option<tempfile::TempPath>,
-    child: Option<Child>,
+    ffmpeg: Ffmpeg,
     stdin: Option<ChildStdin>,
-    stderr: Option<std::thread::JoinHandle<String>>,
     width: u32,
     height: u32,
     frames_written: u32,
@@ -385,15 +415,12 @@ impl VideoWriter {
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        let mut child = cmd.spawn().map_err(|e| spawn_error("ffmpeg", &e))?;
-        let stdin = child.stdin.take();
-        let stderr = collect_stderr(&mut child);
+        let (ffmpeg, stdin, _) = Ffmpeg::spawn(&mut cmd)?;
         Ok(Self {
             path: path.to_owned(),
             tmp: Some(tmp),
-            child: Some(child),
+            ffmpeg,
             stdin,
-            stderr,
             width,
             height,
             frames_written: 0,
@@ -446,26 +473,16 @@ impl VideoWriter {
     /// Closes ffmpeg's input, waits for it, and returns its failure with its messages.
     fn stop(&mut self) -> Result<()> {
         self.stdin = None;
-        let status = match self.child.take() {
-            Some(mut c) => c.wait().map_err(|e| Error::io(&self.path, e))?,
-            None => return Ok(()),
-        };
-        let stderr = self
-            .stderr
-            .take()
-            .and_then(|h| h.join().ok())
-            .unwrap_or_default();
-        if status.success() {
-            Ok(())
-        } else {
-            Err(Error::External {
+        match self.ffmpeg.wait(&self.path)? {
+            None => Ok(()),
+            Some((status, stderr)) => Err(Error::External {
                 program: "ffmpeg",
                 message: format!(
                     "failed ({status}) writing {}: {}",
                     self.path.display(),
                     stderr.trim()
                 ),
-            })
+            }),
         }
     }
 
@@ -491,23 +508,10 @@ impl VideoWriter {
     }
 }
 
-impl super::sink::FrameSink for VideoWriter {
-    fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
-        VideoWriter::write_frame(self, index, image)
-    }
-
-    fn finish(&mut self) -> Result<()> {
-        VideoWriter::finish(self)
-    }
-}
-
 impl Drop for VideoWriter {
     fn drop(&mut self) {
         self.stdin = None;
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
+        self.ffmpeg.kill();
         // `self.tmp`, when still set, removes the unfinished file as it drops.
     }
 }
@@ -515,10 +519,7 @@ impl Drop for VideoWriter {
 impl Drop for VideoReader {
     fn drop(&mut self) {
         self.stdout = None;
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
+        self.ffmpeg.kill();
     }
 }
 

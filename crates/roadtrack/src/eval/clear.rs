@@ -14,8 +14,8 @@
 //! Frag = Σ_objects (number of times tracking (re)starts − 1)
 //! ```
 
-use super::assignment::positive_max_score_pairs;
 use super::preprocess::{EPS, EvalSequence};
+use crate::assignment::positive_max_score_pairs;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 

@@ -16,8 +16,8 @@
 //! values at α = 0.05 and `HOTALocA(0)` their product.
 
 use super::FastMap as HashMap;
-use super::assignment::positive_max_score_pairs;
 use super::preprocess::{EPS, EvalSequence};
+use crate::assignment::positive_max_score_pairs;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 

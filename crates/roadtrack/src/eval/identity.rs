@@ -16,8 +16,8 @@
 //! matrix small.
 
 use super::FastMap as HashMap;
-use super::assignment::max_score_assignment;
 use super::preprocess::EvalSequence;
+use crate::assignment::max_score_assignment;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 

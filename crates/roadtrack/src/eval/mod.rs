@@ -10,7 +10,6 @@
 //! Inputs are the rows the MOTChallenge readers return ([`crate::io::mot`]); the metrics go
 //! through them frame by frame and keep only per-frame matrices and per-id-pair counts.
 
-pub mod assignment;
 mod clear;
 #[cfg(test)]
 mod golden_tests;

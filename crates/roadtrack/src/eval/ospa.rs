@@ -15,7 +15,7 @@
 //! With `α = 2` GOSPA splits into localisation error of the assigned pairs (those closer
 //! than `c`), missed targets and false targets, each costing `c^p / 2`.
 
-use super::assignment::linear_sum_assignment;
+use crate::assignment::linear_sum_assignment;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use serde::{Deserialize, Serialize};

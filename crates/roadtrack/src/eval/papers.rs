@@ -5,9 +5,10 @@
 //!   through a ground mapping, in m and km/h;
 //! - [`detection_table`]: seed 004's TP / FP / FN table with a distance gate;
 //! - [`separation_success`] and [`separation_outcomes`]: seed 002's occlusion separation
-//!   success against visible area (Fig. 10).
+//!   success against visible area (Fig. 10), the one implementation of that curve (the MRF
+//!   experiments reach it through `track::mrf::separation`).
 
-use super::assignment::linear_sum_assignment;
+use crate::assignment::linear_sum_assignment;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::io::matches::MatchRow;
@@ -343,7 +344,7 @@ pub fn trajectory_rmse(
         }
     }
     let pairs: Vec<(u64, u64)> =
-        super::assignment::max_score_assignment(&score, t_ids.len(), k_ids.len())?
+        crate::assignment::max_score_assignment(&score, t_ids.len(), k_ids.len())?
             .into_iter()
             .filter(|&(i, j)| score[i * k_ids.len() + j] > 0.0)
             .map(|(i, j)| (t_ids[i], k_ids[j]))
@@ -405,25 +406,38 @@ pub fn trajectory_rmse(
 // ---------------------------------------------------------------------------------------
 // Occlusion separation success (seed 002)
 
-/// Success rate of separation at one visible area.
+/// Success rate of separation at one visible area: one point of the Fig. 10 curve.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SeparationBin {
-    /// Visible area, blocks.
+    /// Visible area, blocks (with a `max_bin`, the last bin holds every area at or above it).
     pub visible_blocks: u32,
     /// Occluded object-frames with this visible area.
     pub n: u64,
     /// Of which separated.
     pub separated: u64,
-    /// `separated / n`.
+    /// `separated / n` (0 when there was no case).
     pub success_rate: f64,
 }
 
-/// Seed 002 Fig. 10: success rate of separation against visible area, one bin per visible
-/// area found in `rows` (increasing).
-pub fn separation_success(rows: &[OcclusionRow]) -> Vec<SeparationBin> {
+/// Seed 002 Fig. 10: success rate of separation against visible area.
+///
+/// Without `max_bin`, one bin per visible area found in `rows` (increasing). With
+/// `Some(max_bin)`, the bins `1..=max_bin` whether or not they hold a case, the last one
+/// holding every area at or above `max_bin`; rows with no visible block are then left out.
+pub fn separation_success(rows: &[OcclusionRow], max_bin: Option<u32>) -> Vec<SeparationBin> {
     let mut bins: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
+    if let Some(max_bin) = max_bin {
+        for v in 1..=max_bin.max(1) {
+            bins.insert(v, (0, 0));
+        }
+    }
     for r in rows {
-        let e = bins.entry(r.visible_blocks).or_default();
+        let v = match max_bin {
+            None => r.visible_blocks,
+            Some(_) if r.visible_blocks == 0 => continue,
+            Some(m) => r.visible_blocks.min(m.max(1)),
+        };
+        let e = bins.entry(v).or_default();
         e.0 += 1;
         e.1 += u64::from(r.separated);
     }
@@ -432,19 +446,74 @@ pub fn separation_success(rows: &[OcclusionRow]) -> Vec<SeparationBin> {
             visible_blocks: v,
             n,
             separated: s,
-            success_rate: s as f64 / n as f64,
+            success_rate: if n > 0 { s as f64 / n as f64 } else { 0.0 },
         })
         .collect()
+}
+
+/// When a truth object counts as separated from the others.
+///
+/// Both rules first give every tracker id to the truth object whose visible blocks it
+/// covers most (ties: the smaller truth id), and ask for an id given to the object itself
+/// among those on its visible blocks; an object whose visible blocks carry only ids given to
+/// other objects was absorbed by a neighbour, one with no labelled block was lost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SeparationRule {
+    /// The paper's criterion: the object's own region exists in the output, however small.
+    OwnRegion,
+    /// Stricter: the object's own id also covers more than half of its visible blocks.
+    OwnMajority,
+}
+
+/// Whether each truth object is separated under `rule`: `objects[i]` holds the truth id and
+/// the visible blocks of object `i`, `tracker_id(block)` the tracker's id on a block (`None`
+/// for background). One answer per object, in order; an object with no visible block is
+/// not separated.
+pub fn separated_objects(
+    objects: &[(u64, &[usize])],
+    tracker_id: &dyn Fn(usize) -> Option<u64>,
+    rule: SeparationRule,
+) -> Vec<bool> {
+    // overlap[(tracker id, object index)] = visible blocks of the object carrying the id.
+    let mut overlap: BTreeMap<(u64, usize), u32> = BTreeMap::new();
+    for (t, (_, blocks)) in objects.iter().enumerate() {
+        for &b in *blocks {
+            if let Some(k) = tracker_id(b) {
+                *overlap.entry((k, t)).or_insert(0) += 1;
+            }
+        }
+    }
+    // For each tracker id: (overlap, truth id, object index) of the object it covers most.
+    let mut owner: BTreeMap<u64, (u32, u64, usize)> = BTreeMap::new();
+    for (&(k, t), &n) in &overlap {
+        let tid = objects[t].0;
+        let better = match owner.get(&k) {
+            None => true,
+            Some(&(bn, btid, _)) => n > bn || (n == bn && tid < btid),
+        };
+        if better {
+            owner.insert(k, (n, tid, t));
+        }
+    }
+    let mut out = vec![false; objects.len()];
+    for (&(k, t), &n) in &overlap {
+        let visible = objects[t].1.len();
+        let enough = match rule {
+            SeparationRule::OwnRegion => true,
+            SeparationRule::OwnMajority => 2 * n as usize > visible,
+        };
+        if enough && owner.get(&k).is_some_and(|o| o.2 == t) {
+            out[t] = true;
+        }
+    }
+    out
 }
 
 /// Occlusion outcomes of one frame from block maps (row-major grids of the same size; `None`
 /// = background): `truth_map` holds the visible truth object of each block, `tracker_map`
 /// the tracker's id. `occluded(id)` says which truth objects are occluded in this frame
-/// (for example: visible area smaller than the object's full area).
-///
-/// An object is *separated* when some tracker id covers more than half of its visible
-/// blocks and, among all truth objects, covers this one most (ties: the smaller truth id).
-/// Otherwise it was absorbed by a neighbour's region or lost.
+/// (for example: visible area smaller than the object's full area). Whether an object is
+/// separated follows `rule` ([`separated_objects`]). Rows in increasing truth id.
 ///
 /// # Errors
 /// Maps of different sizes.
@@ -453,6 +522,7 @@ pub fn separation_outcomes(
     truth_map: &[Option<u64>],
     tracker_map: &[Option<u64>],
     occluded: &dyn Fn(u64) -> bool,
+    rule: SeparationRule,
 ) -> Result<Vec<OcclusionRow>> {
     if truth_map.len() != tracker_map.len() {
         return Err(Error::Invalid(format!(
@@ -461,38 +531,23 @@ pub fn separation_outcomes(
             tracker_map.len()
         )));
     }
-    let mut visible: BTreeMap<u64, u32> = BTreeMap::new();
-    let mut overlap: BTreeMap<(u64, u64), u32> = BTreeMap::new();
-    for (t, k) in truth_map.iter().zip(tracker_map) {
+    let mut visible: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
+    for (b, t) in truth_map.iter().enumerate() {
         if let Some(t) = t {
-            *visible.entry(*t).or_default() += 1;
-            if let Some(k) = k {
-                *overlap.entry((*t, *k)).or_default() += 1;
-            }
+            visible.entry(*t).or_default().push(b);
         }
     }
-    // For each tracker id, the truth object it covers most.
-    let mut owner: BTreeMap<u64, (u32, u64)> = BTreeMap::new();
-    for (&(t, k), &n) in &overlap {
-        let e = owner.entry(k).or_insert((n, t));
-        if n > e.0 {
-            *e = (n, t);
-        }
-    }
-    Ok(visible
+    let objects: Vec<(u64, &[usize])> = visible.iter().map(|(&id, b)| (id, &b[..])).collect();
+    let separated = separated_objects(&objects, &|b| tracker_map[b], rule);
+    Ok(objects
         .iter()
-        .filter(|(id, _)| occluded(**id))
-        .map(|(&id, &v)| {
-            let separated = overlap
-                .iter()
-                .filter(|((t, _), _)| *t == id)
-                .any(|(&(_, k), &n)| 2 * n > v && owner.get(&k).is_some_and(|o| o.1 == id));
-            OcclusionRow {
-                frame,
-                id,
-                visible_blocks: v,
-                separated,
-            }
+        .zip(separated)
+        .filter(|((id, _), _)| occluded(*id))
+        .map(|(&(id, blocks), separated)| OcclusionRow {
+            frame,
+            id,
+            visible_blocks: blocks.len() as u32,
+            separated,
         })
         .collect())
 }
@@ -622,7 +677,7 @@ mod tests {
         // and one block of 2; id 6 covers the other block of 2 — not more than half: absorbed.
         let truth = [Some(1), Some(1), Some(1), Some(1), Some(2), Some(2), None];
         let track = [Some(5), Some(5), Some(5), Some(5), Some(5), Some(6), None];
-        let rows = separation_outcomes(3, &truth, &track, &|_| true)?;
+        let rows = separation_outcomes(3, &truth, &track, &|_| true, SeparationRule::OwnMajority)?;
         assert_eq!(
             rows,
             [
@@ -647,13 +702,32 @@ mod tests {
             visible_blocks: 2,
             separated: true,
         });
-        let bins = separation_success(&all);
+        let bins = separation_success(&all, None);
         assert_eq!(bins.len(), 2);
         assert_eq!(
             (bins[0].visible_blocks, bins[0].n, bins[0].success_rate),
             (2, 2, 0.5)
         );
-        assert!(separation_outcomes(1, &truth, &track[..3], &|_| true).is_err());
+        // With bins 1..=3, "≥ 3" holds object 1's 4 blocks; bin 1 is empty.
+        let fixed = separation_success(&all, Some(3));
+        assert_eq!(
+            fixed
+                .iter()
+                .map(|b| (b.visible_blocks, b.n, b.separated))
+                .collect::<Vec<_>>(),
+            [(1, 0, 0), (2, 2, 1), (3, 1, 1)]
+        );
+        assert_eq!(fixed[0].success_rate, 0.0);
+        // The paper's rule: id 6 is object 2's own region, however small.
+        let own = separation_outcomes(3, &truth, &track, &|_| true, SeparationRule::OwnRegion)?;
+        assert_eq!(
+            own.iter().map(|r| r.separated).collect::<Vec<_>>(),
+            [true, true]
+        );
+        assert!(
+            separation_outcomes(1, &truth, &track[..3], &|_| true, SeparationRule::OwnRegion)
+                .is_err()
+        );
         Ok(())
     }
 }

@@ -16,7 +16,7 @@
 //! order. The two agree whenever the files list each frame's rows by increasing id, and only
 //! exactly tied assignments could differ otherwise.
 
-use super::assignment::max_score_assignment;
+use crate::assignment::max_score_assignment;
 use crate::error::{Error, Result};
 use crate::geometry::BBox;
 use std::collections::BTreeMap;

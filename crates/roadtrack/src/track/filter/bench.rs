@@ -4,7 +4,7 @@
 //! particle, and in dense mode) and the basic particle filter.
 
 use super::particle::{ParticleFilterConfig, ParticleFilterTracker};
-use super::phd::{PhdConfig, PhdTracker, StageTimes};
+use super::phd::{FilterStageTimes, PhdConfig, PhdTracker};
 use crate::detection::Detection;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -77,7 +77,7 @@ pub struct StageReport {
 }
 
 impl StageReport {
-    fn new(name: &str, t: &StageTimes, particles: usize) -> Self {
+    fn new(name: &str, t: &FilterStageTimes, particles: usize) -> Self {
         let n = t.steps.max(1) as f64;
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3 / n;
         let total = ms(t.total());

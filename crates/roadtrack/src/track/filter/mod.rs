@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 
 /// A rectangular region of the state space: `[x0, x1] × [y0, y1]` (image px or any units).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Region {
+pub struct SurveillanceRegion {
     /// Left edge.
     pub x0: f64,
     /// Top edge.
@@ -48,7 +48,7 @@ pub struct Region {
     pub y1: f64,
 }
 
-impl Region {
+impl SurveillanceRegion {
     /// The region `[x0, x1] × [y0, y1]`.
     pub const fn new(x0: f64, y0: f64, x1: f64, y1: f64) -> Self {
         Self { x0, y0, x1, y1 }

@@ -8,9 +8,9 @@
 //! `Choice:` notes).
 
 use super::motion::ConstantVelocity;
-use super::phd::StageTimes;
+use super::phd::FilterStageTimes;
 use super::resample::{ResamplingScheme, resample};
-use super::{Particles, Region};
+use super::{Particles, SurveillanceRegion};
 use crate::class::ObjectClass;
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -149,7 +149,7 @@ pub struct ParticleFilterTracker {
     source: Source,
     objects: Vec<Object>,
     next_id: u64,
-    times: StageTimes,
+    times: FilterStageTimes,
     positions: Vec<Point>,
     h: Vec<f64>,
 }
@@ -197,14 +197,14 @@ impl ParticleFilterTracker {
             source,
             objects: Vec::new(),
             next_id: 1,
-            times: StageTimes::default(),
+            times: FilterStageTimes::default(),
             positions: Vec::new(),
             h: Vec::new(),
         })
     }
 
     /// Wall time per stage so far (`labels` holds track start and end).
-    pub fn stage_times(&self) -> StageTimes {
+    pub fn stage_times(&self) -> FilterStageTimes {
         self.times
     }
 
@@ -311,7 +311,7 @@ impl ParticleFilterTracker {
 
         // End lost objects and those whose estimate left the image; start new ones.
         let t0 = Instant::now();
-        let region = Region::image(image.width(), image.height());
+        let region = SurveillanceRegion::image(image.width(), image.height());
         let max_lost = self.config.max_lost_frames;
         self.objects
             .retain(|o| o.lost_frames <= max_lost && region.contains(o.estimate.0));

@@ -18,7 +18,7 @@
 
 use super::motion::ConstantVelocity;
 use super::resample::{ResamplingScheme, resample};
-use super::{Particles, Region};
+use super::{Particles, SurveillanceRegion};
 use crate::class::ObjectClass;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -247,7 +247,7 @@ pub struct LabelEstimate {
 
 /// Wall time spent in each stage, summed over steps.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StageTimes {
+pub struct FilterStageTimes {
     /// b) and c): propagation and births.
     pub predict: Duration,
     /// Likelihood evaluation (`h` for every particle).
@@ -262,7 +262,7 @@ pub struct StageTimes {
     pub steps: u64,
 }
 
-impl StageTimes {
+impl FilterStageTimes {
     /// Total over stages.
     pub fn total(&self) -> Duration {
         self.predict + self.likelihood + self.update + self.labels + self.resample
@@ -273,7 +273,7 @@ impl StageTimes {
 #[derive(Debug, Clone)]
 pub struct LabelledPhd {
     config: PhdConfig,
-    region: Region,
+    region: SurveillanceRegion,
     particles: Particles,
     next_label: u32,
     seed: u64,
@@ -288,7 +288,7 @@ impl LabelledPhd {
     ///
     /// # Errors
     /// When the config or the region is invalid.
-    pub fn new(config: PhdConfig, region: Region, seed: u64) -> Result<Self> {
+    pub fn new(config: PhdConfig, region: SurveillanceRegion, seed: u64) -> Result<Self> {
         config.validate()?;
         if !region.is_valid() {
             return Err(Error::Invalid(format!(
@@ -314,7 +314,7 @@ impl LabelledPhd {
     }
 
     /// The region.
-    pub fn region(&self) -> Region {
+    pub fn region(&self) -> SurveillanceRegion {
         self.region
     }
 
@@ -1100,7 +1100,7 @@ pub struct PhdTracker {
     filter: Option<LabelledPhd>,
     start: Start,
     frame_size: (u32, u32),
-    times: StageTimes,
+    times: FilterStageTimes,
     positions: Vec<Point>,
     h: Vec<f64>,
     grid_births: bool,
@@ -1130,7 +1130,7 @@ impl PhdTracker {
             filter: None,
             start: Start::Births,
             frame_size: (0, 0),
-            times: StageTimes::default(),
+            times: FilterStageTimes::default(),
             positions: Vec::new(),
             h: Vec::new(),
             grid_births: true,
@@ -1179,7 +1179,7 @@ impl PhdTracker {
     }
 
     /// Wall time per stage so far.
-    pub fn stage_times(&self) -> StageTimes {
+    pub fn stage_times(&self) -> FilterStageTimes {
         self.times
     }
 
@@ -1211,7 +1211,11 @@ impl PhdTracker {
         let t0 = Instant::now();
         let first = match self.filter {
             None => {
-                let mut f = LabelledPhd::new(self.config.clone(), Region::image(w, h), self.seed)?;
+                let mut f = LabelledPhd::new(
+                    self.config.clone(),
+                    SurveillanceRegion::image(w, h),
+                    self.seed,
+                )?;
                 self.frame_size = (w, h);
                 match std::mem::replace(&mut self.start, Start::Births) {
                     Start::Births => {}
@@ -1328,7 +1332,11 @@ mod tests {
     }
 
     fn filter() -> Result<LabelledPhd> {
-        LabelledPhd::new(PhdConfig::default(), Region::new(0.0, 0.0, 640.0, 480.0), 1)
+        LabelledPhd::new(
+            PhdConfig::default(),
+            SurveillanceRegion::new(0.0, 0.0, 640.0, 480.0),
+            1,
+        )
     }
 
     /// Adds `n` particles of `label` in a small cross around `c`, all with `h`.

@@ -6,7 +6,7 @@
 //! update over all measurements ([`LabelledPhd::update_points`]) and births proposed around
 //! the previous step's measurements ([`LabelledPhd::add_measurement_births`]).
 
-use super::Region;
+use super::SurveillanceRegion;
 use super::motion::ConstantVelocity;
 use super::phd::{LabelledPhd, PhdConfig};
 use super::resample::ResamplingScheme;
@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 pub struct PointFilterConfig {
     /// Surveillance region `X0,Y0,X1,Y1`; `None` takes the measurements' bounding box grown
     /// by 10 % on each side.
-    pub region: Option<Region>,
+    pub region: Option<SurveillanceRegion>,
     /// Time between steps (velocities are in units per unit time inside the filter; the
     /// estimates CSV gives them per step). Default 1.
     pub dt: f64,
@@ -248,7 +248,7 @@ pub fn filter_points_with_progress(
 }
 
 /// The bounding box of the measurements grown by 10 % of its size (at least 1 unit) per side.
-fn bounding_region(ms: &[Measurement]) -> Region {
+fn bounding_region(ms: &[Measurement]) -> SurveillanceRegion {
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for m in ms {
         x0 = x0.min(m.pos.x);
@@ -258,7 +258,7 @@ fn bounding_region(ms: &[Measurement]) -> Region {
     }
     let px = (0.1 * (x1 - x0)).max(1.0);
     let py = (0.1 * (y1 - y0)).max(1.0);
-    Region::new(x0 - px, y0 - py, x1 + px, y1 + py)
+    SurveillanceRegion::new(x0 - px, y0 - py, x1 + px, y1 + py)
 }
 
 #[cfg(test)]

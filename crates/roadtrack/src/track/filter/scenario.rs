@@ -4,7 +4,7 @@
 //! region. Used by the PHD tests and the Stone Soup comparison
 //! (`crates/roadtrack/tests/golden/filter/`).
 
-use super::Region;
+use super::SurveillanceRegion;
 use super::motion::ConstantVelocity;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 #[serde(default, deny_unknown_fields)]
 pub struct PointScenarioConfig {
     /// Surveillance region; targets leaving it die; clutter is uniform over it.
-    pub region: Region,
+    pub region: SurveillanceRegion,
     /// Number of steps (numbered from 1).
     pub steps: u64,
     /// Targets alive at step 1.
@@ -43,7 +43,7 @@ pub struct PointScenarioConfig {
 impl Default for PointScenarioConfig {
     fn default() -> Self {
         Self {
-            region: Region::new(0.0, 0.0, 500.0, 500.0),
+            region: SurveillanceRegion::new(0.0, 0.0, 500.0, 500.0),
             steps: 100,
             initial_targets: 4,
             birth_rate: 0.05,

@@ -16,7 +16,7 @@
 use super::config::{BirthSource, ColourReference, FilterMethod, FilterTrackConfig};
 use super::config::{LikelihoodKind, TrackLikelihoodConfig};
 use super::particle::{LikelihoodFactory, ParticleFilterTracker};
-use super::phd::{PhdTracker, StageTimes};
+use super::phd::{FilterStageTimes, PhdTracker};
 use crate::detect::FrameDetections;
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -122,10 +122,10 @@ impl FilterTracker {
     }
 
     /// Wall time per filter stage so far (detection not included).
-    pub fn stage_times(&self) -> StageTimes {
+    pub fn stage_times(&self) -> FilterStageTimes {
         self.runner
             .as_ref()
-            .map_or_else(StageTimes::default, Runner::stage_times)
+            .map_or_else(FilterStageTimes::default, Runner::stage_times)
     }
 
     /// The shared likelihood's window, px, once it is made (`None` with per-object PF
@@ -292,7 +292,7 @@ impl Runner {
         })
     }
 
-    fn stage_times(&self) -> StageTimes {
+    fn stage_times(&self) -> FilterStageTimes {
         match &self.filter {
             Filter::Pf(t) => t.stage_times(),
             Filter::Phd(t) => t.stage_times(),

@@ -13,7 +13,7 @@ use super::block_matching::{load_rows, sad_full};
 use super::object_map::{
     BLOCK_AREA_PX, BLOCK_PX, BlockGrid, NO_OBJECT, ObjectId, ObjectMap, Vector,
 };
-use super::{MrfConfig, Variant};
+use super::{MrfConfig, MrfVariant};
 use image::GrayImage;
 
 /// `N_k` (eq. 3): how many of the 8 spatial neighbours of block `block` carry `id` in the
@@ -135,12 +135,12 @@ pub struct Terms {
     pub smoothness: f64,
 }
 
-/// Eq. 5: the total energy of `terms` (the smoothness term only in [`Variant::Improved`]).
+/// Eq. 5: the total energy of `terms` (the smoothness term only in [`MrfVariant::Improved`]).
 pub fn total_energy(terms: &Terms, config: &MrfConfig) -> f64 {
     let mut u = neighbour_energy(terms.n, config)
         + overlap_energy(terms.m, config)
         + texture_energy(terms.d, config);
-    if config.variant == Variant::Improved {
+    if config.variant == MrfVariant::Improved {
         u += terms.smoothness;
     }
     u
@@ -245,7 +245,7 @@ mod tests {
         };
         let expected = 0.5 * 4.0 + 256.0 / 256.0 + 32e-6 * 250_000.0;
         let legacy = MrfConfig {
-            variant: Variant::Legacy,
+            variant: MrfVariant::Legacy,
             ..cfg()
         };
         assert!((total_energy(&t, &legacy) - expected).abs() < 1e-12);

@@ -10,8 +10,8 @@ use super::energy::{
     Terms, neighbour_count, overlap_pixels, smoothness_energy, texture_sad, total_energy,
 };
 use super::object_map::{BlockGrid, ObjectId, ObjectMap, Vector};
-use super::propagate::{Candidate, Site};
-use super::{MrfConfig, Variant};
+use super::propagate::{Candidate, GibbsSite};
+use super::{MrfConfig, MrfVariant};
 use crate::rng::{Stream, rng_for};
 use image::GrayImage;
 use rand::RngExt as _;
@@ -82,7 +82,7 @@ pub fn temperature(config: &MrfConfig, iteration: u32) -> f64 {
 // with its representative motion; the f term still weighs it against the neighbours');
 // 48 (twice the window) switches the bound off.
 pub fn proposals(
-    site: &Site,
+    site: &GibbsSite,
     candidate: &Candidate,
     grid: &BlockGrid,
     ids: &[ObjectId],
@@ -144,7 +144,7 @@ fn draw_key(frame: u32, iteration: u32, block: usize) -> u64 {
 /// representative).
 pub fn site_energies(
     ctx: &Context<'_>,
-    site: &Site,
+    site: &GibbsSite,
     ids: &[ObjectId],
     vectors: &[Option<Vector>],
 ) -> Vec<(ObjectId, Vector, f64)> {
@@ -152,7 +152,7 @@ pub fn site_energies(
     let cfg = ctx.config;
     let mut out = Vec::new();
     match cfg.variant {
-        Variant::Legacy => {
+        MrfVariant::Legacy => {
             for c in &site.candidates {
                 let v = ctx.representative.get(&c.id).copied().unwrap_or(c.vector);
                 let terms = Terms {
@@ -164,7 +164,7 @@ pub fn site_energies(
                 out.push((c.id, v, total_energy(&terms, cfg)));
             }
         }
-        Variant::Improved => {
+        MrfVariant::Improved => {
             for c in &site.candidates {
                 let n = neighbour_count(ids, &grid, site.block, c.id);
                 // Eq. 4 over every neighbour that carries a vector (the paper's U_mv does
@@ -204,7 +204,7 @@ pub fn site_energies(
 /// `vectors` only (nothing is written). Results are in the order of `sites`.
 pub fn sweep(
     ctx: &Context<'_>,
-    sites: &[Site],
+    sites: &[GibbsSite],
     ids: &[ObjectId],
     vectors: &[Option<Vector>],
     iteration: u32,
@@ -246,7 +246,7 @@ pub fn sweep(
 /// between sweeps (double buffer).
 pub fn optimise(
     ctx: &Context<'_>,
-    sites: &[Site],
+    sites: &[GibbsSite],
     ids: &mut [ObjectId],
     vectors: &mut [Option<Vector>],
 ) -> GibbsStats {
@@ -355,10 +355,10 @@ mod tests {
         }
     }
 
-    fn contested(grid: &BlockGrid) -> Vec<Site> {
+    fn contested(grid: &BlockGrid) -> Vec<GibbsSite> {
         (1..7)
             .flat_map(|by| [5u32, 6].map(|bx| (bx, by)))
-            .map(|(bx, by)| Site {
+            .map(|(bx, by)| GibbsSite {
                 block: grid.index(bx, by),
                 candidates: vec![
                     Candidate {
@@ -494,7 +494,7 @@ mod tests {
             .cloned()
             .into_iter()
             .collect::<Vec<_>>();
-        let together: Vec<Site> = a.iter().chain(&b).cloned().collect();
+        let together: Vec<GibbsSite> = a.iter().chain(&b).cloned().collect();
         let out_ab = sweep(&ctx, &together, &ids, &vectors, 0);
         let out_b = sweep(&ctx, &b, &ids, &vectors, 0);
         assert_ne!(out_ab[0].0, ids[g.index(5, 3)], "A changes id in the sweep");
@@ -525,7 +525,7 @@ mod tests {
             sad: 0,
             rounded: true,
         };
-        let site = Site {
+        let site = GibbsSite {
             block: g.index(1, 1),
             candidates: vec![c1, c2],
         };

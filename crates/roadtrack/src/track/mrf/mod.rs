@@ -14,7 +14,7 @@
 //! then unclaimed moving regions are born as new objects, and every object's box is
 //! reported as a [`TrackPoint`].
 //!
-//! Two variants ([`Variant`]): the 2000 model (representative vector per object, no `f`
+//! Two variants ([`MrfVariant`]): the 2000 model (representative vector per object, no `f`
 //! term) and the 2004 model (local vectors and the `f` term), compared in Fig. 10.
 
 pub mod block_matching;
@@ -40,7 +40,7 @@ use serde::{Deserialize, Serialize};
 /// Which model of the paper to run (METHODS.md §2 "Two variants").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
-pub enum Variant {
+pub enum MrfVariant {
     /// 2000 model: `M` and `D` use each object's representative (most frequent) vector;
     /// no `f` term; vectors are not optimised.
     Legacy,
@@ -57,7 +57,7 @@ pub enum Variant {
 #[serde(default, deny_unknown_fields)]
 pub struct MrfConfig {
     /// Model variant. Default improved (2004).
-    pub variant: Variant,
+    pub variant: MrfVariant,
     /// `a`, eq. 3/5: weight of the neighbour term. Default 1/2.
     pub neighbour_weight: f64,
     /// `b`, eq. 1/5: weight of the overlap term. Default 1/256.
@@ -117,7 +117,7 @@ pub struct MrfConfig {
 impl Default for MrfConfig {
     fn default() -> Self {
         Self {
-            variant: Variant::Improved,
+            variant: MrfVariant::Improved,
             neighbour_weight: 0.5,
             overlap_weight: 1.0 / 256.0,
             texture_weight: 32.0 / 1_000_000.0,
@@ -226,7 +226,7 @@ pub struct StepStats {
 /// Wall time spent in each stage of [`MrfTracker::step`], s (accumulated over calls; for
 /// profiling, see docs/PERFORMANCE.md "MRF").
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
-pub struct StageTimes {
+pub struct MrfStageTimes {
     /// RGB → luminance.
     pub luminance_s: f64,
     /// Background subtraction and moving blocks.
@@ -259,7 +259,7 @@ pub struct MrfTracker {
     moving: Vec<bool>,
     next_id: ObjectId,
     stats: StepStats,
-    times: StageTimes,
+    times: MrfStageTimes,
 }
 
 impl MrfTracker {
@@ -287,7 +287,7 @@ impl MrfTracker {
             moving: vec![false; grid.len()],
             next_id: 1,
             stats: StepStats::default(),
-            times: StageTimes::default(),
+            times: MrfStageTimes::default(),
         })
     }
 
@@ -330,7 +330,7 @@ impl MrfTracker {
     }
 
     /// Wall time per stage accumulated over every [`MrfTracker::step`] so far.
-    pub fn stage_times(&self) -> StageTimes {
+    pub fn stage_times(&self) -> MrfStageTimes {
         self.times
     }
 
@@ -532,7 +532,7 @@ pub struct MrfBench {
     /// Mean sweeps per frame with sites.
     pub mean_sweeps: f64,
     /// Wall time per stage over all frames, s.
-    pub stages: StageTimes,
+    pub stages: MrfStageTimes,
 }
 
 /// Tracks `frames` (already decoded, so decoding is not timed) with `threads` rayon threads
@@ -610,7 +610,7 @@ mod tests {
             (c.block_px, c.search_radius_px, c.border_blocks),
             (8, 24, 3)
         );
-        assert_eq!(c.variant, Variant::Improved);
+        assert_eq!(c.variant, MrfVariant::Improved);
         assert!(c.validate().is_ok());
     }
 
@@ -618,7 +618,7 @@ mod tests {
     fn config_reads_from_toml_and_rejects_typos() -> Result<()> {
         let c: MrfConfig = toml::from_str("variant = \"legacy\"\nsearch_radius_px = 16\n")
             .map_err(|e| Error::Invalid(e.to_string()))?;
-        assert_eq!(c.variant, Variant::Legacy);
+        assert_eq!(c.variant, MrfVariant::Legacy);
         assert_eq!(c.search_radius_px, 16);
         assert!(toml::from_str::<MrfConfig>("serch_radius_px = 16").is_err());
         let bad = MrfConfig {

@@ -22,7 +22,7 @@ pub struct Candidate {
 
 /// A block to optimise: it has two or more candidate ids.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Site {
+pub struct GibbsSite {
     /// Row-major block index in `X(t)`.
     pub block: usize,
     /// Candidates, sorted by id, distinct ids.
@@ -37,7 +37,7 @@ pub struct Propagated {
     /// Initial local vector per block of `X(t)` (the vector its id arrived with).
     pub vectors: Vec<Option<Vector>>,
     /// Blocks with several candidate ids, ascending block index.
-    pub sites: Vec<Site>,
+    pub sites: Vec<GibbsSite>,
 }
 
 /// Adds `c` to `list`, keeping one candidate per id: a rounded arrival before an overlap
@@ -173,7 +173,7 @@ pub fn propagate(
         ids[t] = init.id;
         vectors[t] = Some(init.vector);
         if list.len() > 1 {
-            sites.push(Site {
+            sites.push(GibbsSite {
                 block: t,
                 candidates: list,
             });

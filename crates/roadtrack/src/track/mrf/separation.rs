@@ -1,9 +1,14 @@
-//! Fig. 10 of seed 002: for every occluded object and frame, its visible area in blocks
-//! against whether it still came out as a region of its own (METHODS.md §2 "Measure").
+//! Fig. 10 of seed 002 in the MRF tracker's terms: for every occluded object and frame,
+//! its visible area in blocks against whether it still came out as a region of its own
+//! (METHODS.md §2 "Measure").
 //!
 //! The paper counts a success when the object's region exists in the output, however
 //! small, and a failure when it was absorbed by a neighbouring object's region; front and
-//! back objects are counted alike. Here:
+//! back objects are counted alike. The judgement and the curve are the evaluation's
+//! ([`crate::eval::papers::separated_objects`] with [`SeparationRule::OwnRegion`],
+//! [`crate::eval::papers::separation_success`]); this module supplies the truth on the
+//! tracker's block grid ([`TruthRegion`], [`truth_regions_from_owner`]) and turns truth and
+//! object maps into their inputs ([`separated`], [`occlusion_rows`]):
 //!
 //! - an output id *belongs to* the truth object whose visible blocks it overlaps most (ties:
 //!   the smaller truth id);
@@ -13,9 +18,10 @@
 //! An object whose visible blocks are covered only by ids that belong to other objects was
 //! absorbed; one with no labelled block at all was lost (also a failure).
 
-use super::object_map::{NO_OBJECT, ObjectId, ObjectMap};
+use super::object_map::{NO_OBJECT, ObjectMap};
+use crate::eval::papers::{SeparationRule, separated_objects};
 use crate::geometry::BBox;
-use serde::Serialize;
+use crate::io::occlusion::OcclusionRow;
 use std::collections::BTreeMap;
 
 /// What the truth says about one object in one frame.
@@ -31,52 +37,27 @@ pub struct TruthRegion {
     pub occluded: bool,
 }
 
-/// One point of the curve.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SeparationBin {
-    /// Visible area, blocks (the last bin holds every area at or above it).
-    pub visible_area_blocks: u32,
-    /// Occluded object-frames with this visible area.
-    pub trials: u32,
-    /// Of which separated.
-    pub successes: u32,
-    /// `successes / trials` (0 when there was no trial).
-    pub success_rate: f64,
-}
-
-/// Whether each truth object with visible blocks is separated in `map`:
-/// `(truth id, visible area in blocks, separated)`, in the order of `truth`.
+/// Whether each truth object with visible blocks is separated in `map` (the paper's rule,
+/// [`SeparationRule::OwnRegion`]): `(truth id, visible area in blocks, separated)`, in the
+/// order of `truth`.
 pub fn separated(truth: &[TruthRegion], map: &ObjectMap) -> Vec<(u64, u32, bool)> {
-    // overlap[(output id, truth index)] = visible blocks of the truth object carrying the id.
-    let mut overlap: BTreeMap<(ObjectId, usize), u32> = BTreeMap::new();
-    for (t, r) in truth.iter().enumerate() {
-        for &b in &r.visible_blocks {
-            if let Some(&id) = map.ids.get(b).filter(|&&id| id != NO_OBJECT) {
-                *overlap.entry((id, t)).or_insert(0) += 1;
-            }
-        }
-    }
-    let mut owner: BTreeMap<ObjectId, (u32, u64, usize)> = BTreeMap::new();
-    for (&(id, t), &n) in &overlap {
-        let tid = truth[t].id;
-        let better = match owner.get(&id) {
-            None => true,
-            Some(&(bn, btid, _)) => n > bn || (n == bn && tid < btid),
-        };
-        if better {
-            owner.insert(id, (n, tid, t));
-        }
-    }
+    let objects: Vec<(u64, &[usize])> = truth
+        .iter()
+        .map(|r| (r.id, r.visible_blocks.as_slice()))
+        .collect();
+    let tracker_id = |b: usize| {
+        map.ids
+            .get(b)
+            .copied()
+            .filter(|&id| id != NO_OBJECT)
+            .map(u64::from)
+    };
+    let ok = separated_objects(&objects, &tracker_id, SeparationRule::OwnRegion);
     truth
         .iter()
-        .enumerate()
-        .filter(|(_, r)| !r.visible_blocks.is_empty())
-        .map(|(t, r)| {
-            let ok = overlap
-                .keys()
-                .any(|&(id, tt)| tt == t && owner.get(&id).is_some_and(|o| o.2 == t));
-            (r.id, r.visible_blocks.len() as u32, ok)
-        })
+        .zip(ok)
+        .filter(|(r, _)| !r.visible_blocks.is_empty())
+        .map(|(r, ok)| (r.id, r.visible_blocks.len() as u32, ok))
         .collect()
 }
 
@@ -135,49 +116,34 @@ pub fn truth_regions_from_owner(
         .collect()
 }
 
-/// The Fig. 10 curve: success rate of occluded objects per visible area `1..=max_bin`
-/// blocks (the last bin is "≥ max_bin"). `truth[f]` and `maps[f]` belong to the same frame;
-/// only objects flagged `occluded` count.
-pub fn separation_curve(
-    truth: &[Vec<TruthRegion>],
-    maps: &[ObjectMap],
-    max_bin: u32,
-) -> Vec<SeparationBin> {
-    let max_bin = max_bin.max(1);
-    let mut trials = vec![0u32; max_bin as usize];
-    let mut wins = vec![0u32; max_bin as usize];
-    for (frame, map) in truth.iter().zip(maps) {
-        for ((_, area, ok), r) in separated(frame, map)
+/// The occlusion outcomes of a run, the input of the Fig. 10 curve
+/// ([`crate::eval::papers::separation_success`]): one row per object flagged `occluded`
+/// with at least one visible block, per frame. `truth[f]` and `maps[f]` belong to frame
+/// `f + 1`.
+pub fn occlusion_rows(truth: &[Vec<TruthRegion>], maps: &[ObjectMap]) -> Vec<OcclusionRow> {
+    let mut rows = Vec::new();
+    for (f, (frame, map)) in truth.iter().zip(maps).enumerate() {
+        for ((id, area, ok), r) in separated(frame, map)
             .into_iter()
             .zip(frame.iter().filter(|r| !r.visible_blocks.is_empty()))
         {
-            if !r.occluded {
-                continue;
-            }
-            let bin = (area.min(max_bin) - 1) as usize;
-            trials[bin] += 1;
-            if ok {
-                wins[bin] += 1;
+            if r.occluded {
+                rows.push(OcclusionRow {
+                    frame: f as u32 + 1,
+                    id,
+                    visible_blocks: area,
+                    separated: ok,
+                });
             }
         }
     }
-    (0..max_bin as usize)
-        .map(|i| SeparationBin {
-            visible_area_blocks: i as u32 + 1,
-            trials: trials[i],
-            successes: wins[i],
-            success_rate: if trials[i] > 0 {
-                f64::from(wins[i]) / f64::from(trials[i])
-            } else {
-                0.0
-            },
-        })
-        .collect()
+    rows
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::papers::separation_success;
     use crate::track::mrf::object_map::BlockGrid;
 
     fn truth(id: u64, blocks: Vec<usize>) -> TruthRegion {
@@ -252,11 +218,13 @@ mod tests {
         let mut map2 = map.clone();
         map2.ids[6] = 1;
         let frame2 = vec![truth(10, vec![0, 1, 2, 3]), truth(20, vec![4, 5, 6])];
-        let curve = separation_curve(&[frame1, frame2], &[map, map2], 3);
+        let rows = occlusion_rows(&[frame1, frame2], &[map, map2]);
+        assert_eq!(rows.len(), 4);
+        let curve = separation_success(&rows, Some(3));
         assert_eq!(curve.len(), 3);
-        assert_eq!((curve[0].trials, curve[1].trials), (0, 0));
+        assert_eq!((curve[0].n, curve[1].n), (0, 0));
         // Bin "≥ 3": A twice (2 wins), B twice (1 win).
-        assert_eq!((curve[2].trials, curve[2].successes), (4, 3));
+        assert_eq!((curve[2].n, curve[2].separated), (4, 3));
         assert_eq!(curve[2].success_rate, 0.75);
     }
 }

@@ -2,6 +2,7 @@
 //! optimal one-to-one assignment, both with the relaxation's square gate `D`.
 
 use super::labels::LabelGraph;
+use crate::assignment::linear_sum_assignment;
 use crate::detection::Detection;
 use crate::error::Result;
 use crate::geometry::Point;
@@ -45,9 +46,12 @@ pub fn nearest_neighbour(
 ///
 /// Choice: with the no-match cost `D` per vehicle a pair (cost ≤ `D·√2 < 2D`) always beats
 /// leaving both vehicles unpaired, so this is the minimum-distance matching of maximum
-/// size inside the gate. Solved exactly by the Hungarian method on each connected
-/// component of the gate graph (`O(c³)` for a component of `c` vehicles: fine for the
-/// paper's ~50 vehicles per pair, not meant for the 100 000 of the scale benchmark).
+/// size inside the gate. Solved exactly on each connected component of the gate graph by
+/// the crate's assignment solver ([`linear_sum_assignment`], shortest augmenting paths,
+/// `O(c³)` for a component of `c` vehicles: fine for the paper's ~50 vehicles per pair, not
+/// meant for the 100 000 of the scale benchmark). Among several optimal pairings (exact
+/// ties only, e.g. integer positions) it returns the one SciPy's `linear_sum_assignment`
+/// returns.
 ///
 /// # Errors
 /// From [`LabelGraph::new`]; a component larger than [`MAX_COMPONENT`].
@@ -119,11 +123,9 @@ pub fn optimal_assignment(
                 cost[(a + c) * size + b + r] = 0.0; // dummy–dummy
             }
         }
-        let assign = hungarian(&cost, size);
-        for (r, &i) in rows.iter().enumerate() {
-            let c = assign[r];
-            if c < b && cost[r * size + c] < FORBIDDEN {
-                partner[i] = Some(cols[c]);
+        for (r, c) in linear_sum_assignment(&cost, size, size)? {
+            if r < a && c < b && cost[r * size + c] < FORBIDDEN {
+                partner[rows[r]] = Some(cols[c]);
             }
         }
     }
@@ -136,69 +138,6 @@ pub const MAX_COMPONENT: usize = 4096;
 
 /// Cost of a forbidden pair: larger than any sum of allowed costs we build.
 const FORBIDDEN: f64 = 1e15;
-
-/// The Hungarian method (shortest augmenting paths with potentials, `O(n³)`) on a square
-/// `n × n` row-major cost matrix: the column assigned to each row, minimising the sum.
-pub fn hungarian(cost: &[f64], n: usize) -> Vec<usize> {
-    debug_assert_eq!(cost.len(), n * n, "square matrix");
-    // 1-based arrays as in the classic formulation; column 0 is the virtual start.
-    let mut u = vec![0.0; n + 1];
-    let mut v = vec![0.0; n + 1];
-    let mut p = vec![0usize; n + 1]; // p[j]: row assigned to column j
-    let mut way = vec![0usize; n + 1];
-    for i in 1..=n {
-        p[0] = i;
-        let mut j0 = 0usize;
-        let mut minv = vec![f64::INFINITY; n + 1];
-        let mut used = vec![false; n + 1];
-        loop {
-            used[j0] = true;
-            let i0 = p[j0];
-            let mut delta = f64::INFINITY;
-            let mut j1 = 0usize;
-            for j in 1..=n {
-                if !used[j] {
-                    let cur = cost[(i0 - 1) * n + (j - 1)] - u[i0] - v[j];
-                    if cur < minv[j] {
-                        minv[j] = cur;
-                        way[j] = j0;
-                    }
-                    if minv[j] < delta {
-                        delta = minv[j];
-                        j1 = j;
-                    }
-                }
-            }
-            for j in 0..=n {
-                if used[j] {
-                    u[p[j]] += delta;
-                    v[j] -= delta;
-                } else {
-                    minv[j] -= delta;
-                }
-            }
-            j0 = j1;
-            if p[j0] == 0 {
-                break;
-            }
-        }
-        loop {
-            let j1 = way[j0];
-            p[j0] = p[j1];
-            j0 = j1;
-            if j0 == 0 {
-                break;
-            }
-        }
-    }
-    let mut row_to_col = vec![0usize; n];
-    for j in 1..=n {
-        if p[j] > 0 {
-            row_to_col[p[j] - 1] = j - 1;
-        }
-    }
-    row_to_col
-}
 
 #[cfg(test)]
 mod tests {

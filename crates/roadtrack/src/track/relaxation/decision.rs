@@ -4,7 +4,8 @@
 //! means no partner. Two frame-1 vehicles may then choose the same frame-2 vehicle. The
 //! optional one-to-one rule forbids that.
 
-use super::update::{Probabilities, RelaxationProblem, Solution};
+use super::probabilities::{Probabilities, Solution};
+use super::problem::RelaxationProblem;
 use crate::io::matches::MatchRow;
 use serde::{Deserialize, Serialize};
 
@@ -185,36 +186,38 @@ fn one_to_one(
     (partner, prob)
 }
 
-/// The decision on a solved problem.
-pub(crate) fn decide(problem: &RelaxationProblem, sol: &Solution, rule: DecisionRule) -> Matching {
-    let g = &problem.graph;
-    let (o1, o2) = (&problem.order1[..], &problem.order2[..]);
-    let (partner, probability) = match rule {
-        DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
-        DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
-    };
-    let (backward_partner, backward_probability) = match &sol.q {
-        Some(q) => {
-            let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q, o2, o1);
-            (Some(a), Some(b))
+impl RelaxationProblem {
+    /// The decision on `sol` (argmax, or one-to-one).
+    pub fn decide(&self, sol: &Solution, rule: DecisionRule) -> Matching {
+        let g = &self.graph;
+        let (o1, o2) = (&self.order1[..], &self.order2[..]);
+        let (partner, probability) = match rule {
+            DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+            DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+        };
+        let (backward_partner, backward_probability) = match &sol.q {
+            Some(q) => {
+                let (a, b) = argmax_all(&g.bwd_start, &g.bwd_target, q, o2, o1);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        };
+        Matching {
+            ids1: self.ids1.clone(),
+            ids2: self.ids2.clone(),
+            partner,
+            probability,
+            backward_partner,
+            backward_probability,
+            iterations: sol.iterations,
+            converged: sol.converged,
         }
-        None => (None, None),
-    };
-    Matching {
-        ids1: problem.ids1.clone(),
-        ids2: problem.ids2.clone(),
-        partner,
-        probability,
-        backward_partner,
-        backward_probability,
-        iterations: sol.iterations,
-        converged: sol.converged,
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::{RelaxationConfig, Variant, match_vehicles};
+    use super::super::{RelaxationConfig, RelaxationVariant, match_vehicles};
     use super::*;
     use crate::Result;
     use crate::detection::Detection;
@@ -303,7 +306,7 @@ mod tests {
         // iteration while λ_p keeps its weight (eq. 18). Colour start: P = 21 675/24 375 =
         // 0.889 vs 2700/24 375 = 0.111, ratio 8 → after k iterations 8 · 0.5^k: λ_p wins
         // from k = 4. Documented: the method needs neighbours; with A ≥ 1 the start decides.
-        for v in Variant::ALL {
+        for v in RelaxationVariant::ALL {
             let cfg = RelaxationConfig {
                 variant: v,
                 ..Default::default()
@@ -350,7 +353,7 @@ mod tests {
         assert!(m.contains("variant `bidirectional`"), "{m}");
         // The uniform variants do not need colour.
         let uni = RelaxationConfig {
-            variant: Variant::Bidirectional,
+            variant: RelaxationVariant::Bidirectional,
             ..Default::default()
         };
         assert!(match_vehicles(std::slice::from_ref(&a), &no_colour, &uni).is_ok());

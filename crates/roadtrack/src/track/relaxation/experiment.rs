@@ -7,7 +7,7 @@
 
 use super::baselines::{nearest_neighbour, optimal_assignment};
 use super::decision::DecisionRule;
-use super::{RelaxationConfig, RelaxationProblem, Variant};
+use super::{RelaxationConfig, RelaxationProblem, RelaxationVariant};
 use crate::detection::Detection;
 use crate::error::{Error, Result};
 use crate::io::detections::read_detections;
@@ -121,31 +121,31 @@ pub fn problem_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// A matching method of the experiment tables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Method {
+pub enum ExperimentMethod {
     /// Relaxation with a variant and a decision rule (other parameters from the config).
-    Relaxation(Variant, DecisionRule),
+    Relaxation(RelaxationVariant, DecisionRule),
     /// [`nearest_neighbour`] with the same gate.
     NearestNeighbour,
     /// [`optimal_assignment`] with the same gate.
     OptimalAssignment,
 }
 
-impl Method {
+impl ExperimentMethod {
     /// The paper's four variants with argmax, then the two baselines.
-    pub fn table1() -> Vec<Method> {
-        let mut v: Vec<Method> = Variant::ALL
+    pub fn table1() -> Vec<ExperimentMethod> {
+        let mut v: Vec<ExperimentMethod> = RelaxationVariant::ALL
             .iter()
-            .map(|&v| Method::Relaxation(v, DecisionRule::Argmax))
+            .map(|&v| ExperimentMethod::Relaxation(v, DecisionRule::Argmax))
             .collect();
-        v.push(Method::NearestNeighbour);
-        v.push(Method::OptimalAssignment);
+        v.push(ExperimentMethod::NearestNeighbour);
+        v.push(ExperimentMethod::OptimalAssignment);
         v
     }
 
     /// Partner indices on `p`.
     fn partners(self, p: &Problem, cfg: &RelaxationConfig) -> Result<Vec<Option<usize>>> {
         match self {
-            Method::Relaxation(variant, decision) => {
+            ExperimentMethod::Relaxation(variant, decision) => {
                 let cfg = RelaxationConfig {
                     variant,
                     decision,
@@ -155,23 +155,23 @@ impl Method {
                 let sol = prob.solve(&cfg.weights(), cfg.epsilon, cfg.max_iterations);
                 Ok(prob.decide(&sol, decision).partner)
             }
-            Method::NearestNeighbour => {
+            ExperimentMethod::NearestNeighbour => {
                 nearest_neighbour(&p.frame1, &p.frame2, cfg.gate_half_width_px)
             }
-            Method::OptimalAssignment => {
+            ExperimentMethod::OptimalAssignment => {
                 optimal_assignment(&p.frame1, &p.frame2, cfg.gate_half_width_px)
             }
         }
     }
 }
 
-impl fmt::Display for Method {
+impl fmt::Display for ExperimentMethod {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Method::Relaxation(v, DecisionRule::Argmax) => write!(f, "{v}"),
-            Method::Relaxation(v, DecisionRule::OneToOne) => write!(f, "{v}+one-to-one"),
-            Method::NearestNeighbour => f.write_str("nearest-neighbour"),
-            Method::OptimalAssignment => f.write_str("optimal-assignment"),
+            ExperimentMethod::Relaxation(v, DecisionRule::Argmax) => write!(f, "{v}"),
+            ExperimentMethod::Relaxation(v, DecisionRule::OneToOne) => write!(f, "{v}+one-to-one"),
+            ExperimentMethod::NearestNeighbour => f.write_str("nearest-neighbour"),
+            ExperimentMethod::OptimalAssignment => f.write_str("optimal-assignment"),
         }
     }
 }
@@ -180,7 +180,7 @@ impl fmt::Display for Method {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExperimentRow {
     /// The method.
-    pub method: Method,
+    pub method: ExperimentMethod,
     /// Problems scored.
     pub problems: usize,
     /// Frame-1 vehicles over all problems.
@@ -231,7 +231,7 @@ impl ExperimentTable {
 /// detections without colour).
 pub fn run_experiment(
     dirs: &[PathBuf],
-    methods: &[Method],
+    methods: &[ExperimentMethod],
     cfg: &RelaxationConfig,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<ExperimentTable> {
@@ -314,7 +314,7 @@ mod tests {
         let mut calls = Vec::new();
         let table = run_experiment(
             &dirs,
-            &Method::table1(),
+            &ExperimentMethod::table1(),
             &RelaxationConfig::default(),
             &mut |d, t| calls.push((d, t)),
         )?;

@@ -5,7 +5,7 @@
 //! stranger (eq. 8). Uniform start (variants a, c): every label of `L_i` alike.
 
 use super::COLOUR_MAX;
-use super::update::Probabilities;
+use super::probabilities::Probabilities;
 
 /// Eq. 8: colour cost of the no-match label, `3 · (C_max / 3)²` = 21 675 for 8-bit colour.
 pub const NO_MATCH_COLOUR_COST: f64 = 3.0 * (COLOUR_MAX / 3.0) * (COLOUR_MAX / 3.0);

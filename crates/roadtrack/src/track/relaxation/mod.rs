@@ -13,8 +13,10 @@
 //! | file | what | equations |
 //! | --- | --- | --- |
 //! | [`labels`] | candidate labels in the gate, forward and backward, as CSR arrays | 2–6, 12 |
+//! | [`probabilities`] | [`Probabilities`] of one direction, a solve's [`Solution`] | — |
 //! | [`initial`] | colour or uniform start | 7–11 |
 //! | [`support`] | neighbour-support lists (spatial grid + direct label comparison) and sums | 13–16 |
+//! | [`problem`] | [`RelaxationProblem`]: labels, support lists and start, built once | — |
 //! | [`update`] | one double-buffered iteration and the stop rule | 17–20 |
 //! | [`decision`] | argmax and the optional one-to-one decision → [`Matching`] | — |
 //! | [`tracker`] | [`RelaxationTracker`]: frames chained into tracks | — |
@@ -42,6 +44,8 @@ pub mod experiment;
 mod grid;
 pub mod initial;
 pub mod labels;
+pub mod probabilities;
+pub mod problem;
 pub mod scale;
 pub mod support;
 pub mod sweep;
@@ -49,12 +53,14 @@ pub mod tracker;
 pub mod update;
 
 pub use decision::{DecisionRule, Matching};
-pub use experiment::{ExperimentTable, Method, run_experiment};
+pub use experiment::{ExperimentMethod, ExperimentTable, run_experiment};
 pub use labels::LabelGraph;
+pub use probabilities::{Probabilities, Solution};
+pub use problem::RelaxationProblem;
 pub use scale::{ScaleReport, bench_scale, generate_road_network_pair};
 pub use sweep::{SweepGrid, SweepResult, sweep};
 pub use tracker::{RelaxationTracker, RelaxationTrackerConfig};
-pub use update::{Probabilities, RelaxationProblem, Solution, UpdateWeights};
+pub use update::UpdateWeights;
 
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -69,7 +75,7 @@ pub const COLOUR_MAX: f64 = 255.0;
 /// The four methods of Table 1 (METHODS.md §1 "Variants").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Variant {
+pub enum RelaxationVariant {
     /// (a) unidirectional, uniform start.
     Unidirectional,
     /// (b) unidirectional, colour start.
@@ -81,60 +87,63 @@ pub enum Variant {
     ColourBidirectional,
 }
 
-impl Variant {
+impl RelaxationVariant {
     /// All four, in the order of Table 1: (a), (b), (c), (d).
-    pub const ALL: [Variant; 4] = [
-        Variant::Unidirectional,
-        Variant::ColourUnidirectional,
-        Variant::Bidirectional,
-        Variant::ColourBidirectional,
+    pub const ALL: [RelaxationVariant; 4] = [
+        RelaxationVariant::Unidirectional,
+        RelaxationVariant::ColourUnidirectional,
+        RelaxationVariant::Bidirectional,
+        RelaxationVariant::ColourBidirectional,
     ];
 
     /// Whether the start uses colour (eqs. 7–11) rather than uniform probabilities.
     pub fn colour_start(self) -> bool {
         matches!(
             self,
-            Variant::ColourUnidirectional | Variant::ColourBidirectional
+            RelaxationVariant::ColourUnidirectional | RelaxationVariant::ColourBidirectional
         )
     }
 
     /// Whether the update uses the backward probabilities `Q` (eqs. 19–20 with `C`).
     pub fn bidirectional(self) -> bool {
-        matches!(self, Variant::Bidirectional | Variant::ColourBidirectional)
+        matches!(
+            self,
+            RelaxationVariant::Bidirectional | RelaxationVariant::ColourBidirectional
+        )
     }
 
     /// The name used on the command line and in TOML (`colour-bidirectional`, …).
     pub fn name(self) -> &'static str {
         match self {
-            Variant::Unidirectional => "unidirectional",
-            Variant::ColourUnidirectional => "colour-unidirectional",
-            Variant::Bidirectional => "bidirectional",
-            Variant::ColourBidirectional => "colour-bidirectional",
+            RelaxationVariant::Unidirectional => "unidirectional",
+            RelaxationVariant::ColourUnidirectional => "colour-unidirectional",
+            RelaxationVariant::Bidirectional => "bidirectional",
+            RelaxationVariant::ColourBidirectional => "colour-bidirectional",
         }
     }
 
     /// The paper's letter in Table 1: `a`, `b`, `c` or `d`.
     pub fn letter(self) -> char {
         match self {
-            Variant::Unidirectional => 'a',
-            Variant::ColourUnidirectional => 'b',
-            Variant::Bidirectional => 'c',
-            Variant::ColourBidirectional => 'd',
+            RelaxationVariant::Unidirectional => 'a',
+            RelaxationVariant::ColourUnidirectional => 'b',
+            RelaxationVariant::Bidirectional => 'c',
+            RelaxationVariant::ColourBidirectional => 'd',
         }
     }
 }
 
-impl fmt::Display for Variant {
+impl fmt::Display for RelaxationVariant {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
 }
 
-impl FromStr for Variant {
+impl FromStr for RelaxationVariant {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        Variant::ALL
+        RelaxationVariant::ALL
             .into_iter()
             .find(|v| v.name() == s || v.name().replace("colour", "color") == s)
             .ok_or_else(|| {
@@ -178,7 +187,7 @@ pub struct RelaxationConfig {
     /// Iteration cap (paper: 50). 0 decides on the initial probabilities.
     pub max_iterations: u32,
     /// Which of the four methods of Table 1. Default `colour-bidirectional` (d).
-    pub variant: Variant,
+    pub variant: RelaxationVariant,
     /// How probabilities become pairs. Default `argmax` (the paper's).
     pub decision: DecisionRule,
 }
@@ -194,7 +203,7 @@ impl Default for RelaxationConfig {
             gate_half_width_px: 150.0,
             epsilon: 1e-6,
             max_iterations: 50,
-            variant: Variant::ColourBidirectional,
+            variant: RelaxationVariant::ColourBidirectional,
             decision: DecisionRule::Argmax,
         }
     }
@@ -269,7 +278,7 @@ pub(crate) fn validate_detections(
     detections: &[Detection],
     which: u8,
     need_colour: bool,
-    variant: Variant,
+    variant: RelaxationVariant,
 ) -> Result<()> {
     let mut seen = HashSet::with_capacity(detections.len());
     for d in detections {
@@ -340,7 +349,7 @@ mod tests {
             (20.0, 200.0, 150.0)
         );
         assert_eq!((c.epsilon, c.max_iterations), (1e-6, 50));
-        assert_eq!(c.variant, Variant::ColourBidirectional);
+        assert_eq!(c.variant, RelaxationVariant::ColourBidirectional);
         assert_eq!(c.decision, DecisionRule::Argmax);
     }
 
@@ -357,8 +366,8 @@ mod tests {
 
     #[test]
     fn variants_parse_by_name_and_round_trip_through_toml() -> Result<()> {
-        for v in Variant::ALL {
-            assert_eq!(v.name().parse::<Variant>()?, v);
+        for v in RelaxationVariant::ALL {
+            assert_eq!(v.name().parse::<RelaxationVariant>()?, v);
             let c = RelaxationConfig {
                 variant: v,
                 ..Default::default()
@@ -373,11 +382,11 @@ mod tests {
             assert_eq!(back, c);
         }
         assert_eq!(
-            "color-bidirectional".parse::<Variant>()?,
-            Variant::ColourBidirectional
+            "color-bidirectional".parse::<RelaxationVariant>()?,
+            RelaxationVariant::ColourBidirectional
         );
         let m = "sideways"
-            .parse::<Variant>()
+            .parse::<RelaxationVariant>()
             .expect_err("unknown")
             .to_string();
         assert!(
@@ -390,10 +399,10 @@ mod tests {
     #[test]
     fn unidirectional_variants_use_no_backward_weight() {
         for (v, c) in [
-            (Variant::Unidirectional, 0.0),
-            (Variant::ColourUnidirectional, 0.0),
-            (Variant::Bidirectional, 1.0),
-            (Variant::ColourBidirectional, 1.0),
+            (RelaxationVariant::Unidirectional, 0.0),
+            (RelaxationVariant::ColourUnidirectional, 0.0),
+            (RelaxationVariant::Bidirectional, 1.0),
+            (RelaxationVariant::ColourBidirectional, 1.0),
         ] {
             let cfg = RelaxationConfig {
                 variant: v,

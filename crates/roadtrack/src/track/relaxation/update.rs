@@ -10,26 +10,10 @@
 //! All vehicles update from the previous iteration's `P` and `Q` (double buffer), so the
 //! result does not depend on the order — or the number of threads — in which they run.
 
-use super::decision::{self, DecisionRule, Matching};
-use super::grid::PointGrid;
-use super::initial::initial_probabilities;
-use super::labels::{LabelGraph, PAR_BLOCK};
-use super::support::SupportLists;
-use super::{RelaxationConfig, validate_detections};
-use crate::detection::Detection;
-use crate::error::Result;
-use crate::geometry::Point;
+use super::labels::PAR_BLOCK;
+use super::probabilities::{Probabilities, Solution};
+use super::problem::RelaxationProblem;
 use rayon::prelude::*;
-
-/// The label probabilities of one direction: `real[e]` for every real label (rows of the
-/// [`LabelGraph`]) and `none[i]` for every vehicle's no-match label.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Probabilities {
-    /// Probability of each real label.
-    pub real: Vec<f64>,
-    /// Probability of each vehicle's no-match label.
-    pub none: Vec<f64>,
-}
 
 /// The constants `A, B, C` of eqs. 19–20.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,49 +26,6 @@ pub struct UpdateWeights {
     pub backward_support_weight: f64,
 }
 
-/// Probabilities after the iterations, with how they ended.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Solution {
-    /// Forward probabilities `P`.
-    pub p: Probabilities,
-    /// Backward probabilities `Q` (bidirectional variants only).
-    pub q: Option<Probabilities>,
-    /// Iterations run.
-    pub iterations: u32,
-    /// Whether the last iteration changed no probability by more than `epsilon`.
-    pub converged: bool,
-    /// Largest change of any probability in the last iteration (0 before any).
-    pub last_change: f64,
-}
-
-/// Everything about a two-frame problem that does not depend on `A, B, C`: labels,
-/// support lists and initial probabilities. Built once, solved for any weights.
-///
-/// Layout: the vehicles of each frame are renumbered in grid order (cells of side `R`,
-/// row by row, then input order), so that a vehicle's neighbours, their labels and the
-/// twins of its labels sit close together in memory: the support sums and the update
-/// then read mostly from cache. [`Self::graph`] and every [`Solution`] use this internal
-/// numbering; internal vehicle `i` of frame 1 is input detection `order1[i]`, and
-/// [`Self::decide`] maps the decision back to input order. The method itself does not
-/// depend on the numbering; only the order of floating-point additions does.
-#[derive(Debug, Clone)]
-pub struct RelaxationProblem {
-    /// The labels, between vehicles in internal order.
-    pub graph: LabelGraph,
-    /// Ids of the frame-1 detections, in input order.
-    pub ids1: Vec<u64>,
-    /// Ids of the frame-2 detections, in input order.
-    pub ids2: Vec<u64>,
-    /// Input index of each internal frame-1 vehicle.
-    pub order1: Vec<u32>,
-    /// Input index of each internal frame-2 vehicle.
-    pub order2: Vec<u32>,
-    fwd_support: SupportLists,
-    bwd_support: Option<SupportLists>,
-    initial_p: Probabilities,
-    initial_q: Option<Probabilities>,
-}
-
 /// Work buffers of one iteration.
 struct Buffers {
     p_hat: Vec<f64>,
@@ -94,97 +35,6 @@ struct Buffers {
 }
 
 impl RelaxationProblem {
-    /// Labels (gate `D`), support lists (`R`, `T`) and the start (colour or uniform, per
-    /// `cfg.variant`) for `frame1 → frame2`.
-    ///
-    /// # Errors
-    /// See [`super::match_vehicles`].
-    pub fn new(frame1: &[Detection], frame2: &[Detection], cfg: &RelaxationConfig) -> Result<Self> {
-        cfg.validate()?;
-        let colour = cfg.variant.colour_start();
-        validate_detections(frame1, 1, colour, cfg.variant)?;
-        validate_detections(frame2, 2, colour, cfg.variant)?;
-        // Choice: the internal order (see the type's doc) uses grid cells of side R, the
-        // neighbourhood of eq. 16.
-        let cell = cfg.neighbour_radius_px.max(1.0);
-        let order = |f: &[Detection]| PointGrid::new(f.iter().map(|d| d.pos_px), cell).order();
-        let (order1, order2) = (order(frame1), order(frame2));
-        let ids1: Vec<u64> = frame1.iter().map(|d| d.id).collect();
-        let ids2: Vec<u64> = frame2.iter().map(|d| d.id).collect();
-        let frame1: Vec<&Detection> = order1.iter().map(|&i| &frame1[i as usize]).collect();
-        let frame2: Vec<&Detection> = order2.iter().map(|&i| &frame2[i as usize]).collect();
-        let p: Vec<Point> = frame1.iter().map(|d| d.pos_px).collect();
-        let q: Vec<Point> = frame2.iter().map(|d| d.pos_px).collect();
-        let graph = LabelGraph::new(&p, &q, cfg.gate_half_width_px)?;
-        let (r, t) = (cfg.neighbour_radius_px, cfg.similar_displacement_px);
-        let bidirectional = cfg.variant.bidirectional();
-        // The two directions are independent: built side by side (each is also parallel
-        // over vehicle blocks, but its final concatenation is serial).
-        let (fwd_support, bwd_support) = rayon::join(
-            || SupportLists::build(&p, &graph.fwd_start, &graph.fwd_disp, r, t),
-            || {
-                bidirectional
-                    .then(|| SupportLists::build(&q, &graph.bwd_start, &graph.bwd_disp, r, t))
-                    .transpose()
-            },
-        );
-        let (fwd_support, bwd_support) = (fwd_support?, bwd_support?);
-        // Validated above: every detection has a colour when the variant needs one.
-        let colours = |f: &[&Detection]| -> Vec<[f64; 3]> {
-            f.iter().map(|d| d.colour_rgb.unwrap_or([0.0; 3])).collect()
-        };
-        let (c1, c2) = if colour {
-            (colours(&frame1), colours(&frame2))
-        } else {
-            (Vec::new(), Vec::new())
-        };
-        let (initial_p, initial_q) = rayon::join(
-            || {
-                initial_probabilities(
-                    &graph.fwd_start,
-                    &graph.fwd_target,
-                    colour.then_some((&c1[..], &c2[..])),
-                )
-            },
-            || {
-                bidirectional.then(|| {
-                    initial_probabilities(
-                        &graph.bwd_start,
-                        &graph.bwd_target,
-                        colour.then_some((&c2[..], &c1[..])),
-                    )
-                })
-            },
-        );
-        Ok(Self {
-            graph,
-            ids1,
-            ids2,
-            order1,
-            order2,
-            fwd_support,
-            bwd_support,
-            initial_p,
-            initial_q,
-        })
-    }
-
-    /// Whether the problem carries backward probabilities (variants c, d).
-    pub fn bidirectional(&self) -> bool {
-        self.initial_q.is_some()
-    }
-
-    /// The start (eqs. 7–11), before any iteration.
-    pub fn initial(&self) -> Solution {
-        Solution {
-            p: self.initial_p.clone(),
-            q: self.initial_q.clone(),
-            iterations: 0,
-            converged: false,
-            last_change: 0.0,
-        }
-    }
-
     /// Iterates eqs. 17–20 from the start until no probability changes by more than
     /// `epsilon` or `max_iterations` iterations have run.
     pub fn solve(&self, w: &UpdateWeights, epsilon: f64, max_iterations: u32) -> Solution {
@@ -271,31 +121,6 @@ impl RelaxationProblem {
         sol.last_change = change;
         change
     }
-
-    /// The decision on `sol` (argmax, or one-to-one).
-    pub fn decide(&self, sol: &Solution, rule: DecisionRule) -> Matching {
-        decision::decide(self, sol, rule)
-    }
-
-    /// Number of (label, supporting label) pairs, forward plus backward.
-    pub fn n_support_entries(&self) -> usize {
-        self.fwd_support.n_entries() + self.bwd_support.as_ref().map_or(0, |s| s.n_entries())
-    }
-
-    /// Heap bytes held by the problem (labels, support lists, start), plus what one solve
-    /// allocates (two probability sets and two support buffers per direction).
-    pub fn heap_bytes(&self) -> usize {
-        let probs = |p: &Probabilities| 8 * (p.real.capacity() + p.none.capacity());
-        let orders = 4 * (self.order1.capacity() + self.order2.capacity());
-        let dirs = if self.bidirectional() { 2 } else { 1 };
-        self.graph.heap_bytes()
-            + orders
-            + self.fwd_support.heap_bytes()
-            + self.bwd_support.as_ref().map_or(0, |s| s.heap_bytes())
-            + probs(&self.initial_p)
-            + self.initial_q.as_ref().map_or(0, probs)
-            + dirs * (2 * probs(&self.initial_p) + 8 * self.graph.n_labels())
-    }
 }
 
 /// Eqs. 17–19 (or 20) for every vehicle of one direction: reads `old`, the supports, and
@@ -373,8 +198,13 @@ fn update_direction(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Variant, match_vehicles};
+    use super::super::{
+        DecisionRule, Matching, RelaxationConfig, RelaxationVariant, match_vehicles,
+    };
     use super::*;
+    use crate::detection::Detection;
+    use crate::error::Result;
+    use crate::geometry::Point;
     use proptest::prelude::*;
 
     fn det(id: u64, x: f64, y: f64, rgb: [f64; 3]) -> Detection {
@@ -412,7 +242,7 @@ mod tests {
         let f1 = [det(1, 0.0, 0.0, [0.0; 3]), det(2, 30.0, 0.0, [0.0; 3])];
         let f2 = [det(1, 10.0, 0.0, [0.0; 3]), det(2, 40.0, 0.0, [0.0; 3])];
         let cfg = RelaxationConfig {
-            variant: Variant::Bidirectional,
+            variant: RelaxationVariant::Bidirectional,
             ..Default::default()
         };
         let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
@@ -442,7 +272,7 @@ mod tests {
         let f1 = [det(1, 0.0, 0.0, [0.0; 3]), det(2, 30.0, 0.0, [0.0; 3])];
         let f2 = [det(1, 10.0, 0.0, [0.0; 3]), det(2, 40.0, 0.0, [0.0; 3])];
         let cfg = RelaxationConfig {
-            variant: Variant::Unidirectional,
+            variant: RelaxationVariant::Unidirectional,
             ..Default::default()
         };
         let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
@@ -528,7 +358,7 @@ mod tests {
         #[test]
         fn probabilities_stay_distributions((f1, f2) in arbitrary_pair(), v in 0usize..4,
                                             a in 0.0..1.0f64, b in 0.0..10.0f64, c in 0.0..10.0f64) {
-            let cfg = RelaxationConfig { variant: Variant::ALL[v], own_weight: a,
+            let cfg = RelaxationConfig { variant: RelaxationVariant::ALL[v], own_weight: a,
                 forward_support_weight: b, backward_support_weight: c, ..Default::default() };
             let prob = RelaxationProblem::new(&f1, &f2, &cfg).expect("problem");
             let mut sol = prob.initial();
@@ -545,7 +375,7 @@ mod tests {
         /// of the swapped problem are the backward ones of the original, bit for bit.
         #[test]
         fn swapping_frames_mirrors_the_bidirectional_result((f1, f2) in arbitrary_pair(), colour in any::<bool>()) {
-            let cfg = RelaxationConfig { variant: if colour { Variant::ColourBidirectional } else { Variant::Bidirectional }, ..Default::default() };
+            let cfg = RelaxationConfig { variant: if colour { RelaxationVariant::ColourBidirectional } else { RelaxationVariant::Bidirectional }, ..Default::default() };
             let ab = RelaxationProblem::new(&f1, &f2, &cfg).expect("problem");
             let ba = RelaxationProblem::new(&f2, &f1, &cfg).expect("problem");
             prop_assert_eq!(&ab.graph.swapped(), &ba.graph);

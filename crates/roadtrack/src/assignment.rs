@@ -7,6 +7,10 @@
 //! line-by-line port of SciPy's shortest-augmenting-path solver (Crouse 2016), which returns the
 //! same assignment as SciPy on ties: it transposes tall matrices, scans columns in the same
 //! order and breaks equal reduced costs in favour of a free column.
+//!
+//! It is the crate's only assignment solver: the metrics ([`crate::eval`]) and the
+//! relaxation's optimal-assignment baseline
+//! ([`crate::track::relaxation::baselines::optimal_assignment`]) both call it.
 
 use crate::error::{Error, Result};
 
