@@ -245,3 +245,63 @@ pub fn track_source<'a>(
     };
     pipeline.run(frames, info.selected_frames.map(u64::from), progress)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+    use crate::frame::Frame;
+    use crate::track::pipeline::run_frames;
+    use crate::track_point::TrackPoint;
+    use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
+
+    /// Every method gives the same points from an image folder (two passes, as `roadtrack
+    /// track`) as from the same frames in memory with a background learnt from them.
+    #[test]
+    fn every_method_tracks_a_folder_as_it_tracks_the_frames_in_memory() -> Result<()> {
+        let cfg = SimConfig {
+            scene: SceneKind::Crossing,
+            view: ViewKind::Oblique,
+            frames: 20,
+            ..Default::default()
+        };
+        let frames: Vec<Frame> = Simulation::new(&cfg, 4)?
+            .map(|s| s.map(|s| s.frame))
+            .collect::<Result<_>>()?;
+        let dir = tempfile::tempdir().map_err(|e| Error::io("tmp", e))?;
+        for f in &frames {
+            let path = dir.path().join(format!("{:06}.png", f.index));
+            f.image
+                .save(&path)
+                .map_err(|e| Error::Invalid(e.to_string()))?;
+        }
+        let opts = SourceOptions {
+            fps: Some(10.0),
+            ..Default::default()
+        };
+        let info = source::open(dir.path(), &opts)?.info.clone();
+        let mut seen = 0;
+        for method in Method::ALL {
+            let mut from_dir: Vec<TrackPoint> = Vec::new();
+            let s = track_source(
+                dir.path(),
+                &opts,
+                MethodConfig::defaults(method, 7),
+                Vec::new(),
+                vec![Box::new(&mut from_dir)],
+                &mut |_, _| {},
+            )?;
+            assert_eq!(s.frames, 20);
+            let built = MethodConfig::defaults(method, 7).build(dir.path(), &opts, &info)?;
+            let in_memory = run_frames(
+                built.detector,
+                built.tracker.boxed(),
+                frames.iter().cloned().map(Ok),
+            )?;
+            assert_eq!(from_dir, in_memory, "{}", method.name());
+            seen += usize::from(!from_dir.is_empty());
+        }
+        assert!(seen >= 3, "only {seen} methods tracked anything");
+        Ok(())
+    }
+}
