@@ -42,7 +42,28 @@ enum Command {
     Train(cmd::train::Args),
 }
 
+/// On SIGINT or SIGTERM: stop the ffmpeg encoders, remove every temporary output, and exit
+/// with 128 + the signal (130, 143), so an interrupted run leaves nothing behind.
+#[cfg(unix)]
+fn remove_outputs_on_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            roadtrack::io::video::kill_ffmpeg_processes();
+            roadtrack::io::atomic::remove_pending_outputs();
+            std::process::exit(128 + sig);
+        }
+    });
+}
+
+#[cfg(not(unix))]
+fn remove_outputs_on_signals() {}
+
 fn main() -> ExitCode {
+    remove_outputs_on_signals();
     let cli = Cli::parse();
     let ui = common::Ui::new(cli.quiet, cli.verbose);
     let result = match cli.command {

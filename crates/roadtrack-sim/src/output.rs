@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use roadtrack_core::class::ObjectClass;
 use roadtrack_core::detection::Detection;
 use roadtrack_core::error::{Error, Result};
+use roadtrack_core::io::atomic::AtomicDir;
 use roadtrack_core::io::detections::csv_word;
 use roadtrack_core::io::mot::MotGtRow;
 use roadtrack_core::io::seqinfo::SeqInfo;
@@ -145,7 +146,11 @@ fn write_sequence(
 ) -> Result<SimSummary> {
     let config = sim.config().clone();
     let n = sim.n_frames();
-    let img_dir = out_dir.join("img1");
+    // The folder is written aside and swapped in at the end: an interrupted run leaves no
+    // sequence, and a rerun no stale frames.
+    let dest = AtomicDir::create(out_dir)?;
+    let tmp = dest.temp_path().to_owned();
+    let img_dir = tmp.join("img1");
     std::fs::create_dir_all(&img_dir).map_err(|e| Error::io(&img_dir, e))?;
     let mut truth: Vec<TruthRow> = Vec::new();
     let mut dets: Vec<Detection> = Vec::new();
@@ -183,20 +188,21 @@ fn write_sequence(
         im_height: config.height,
         im_ext: format!(".{ext}"),
     }
-    .write(&out_dir.join("seqinfo.ini"))?;
-    roadtrack_core::io::mot::write_gt(&out_dir.join("gt/gt.txt"), &gt_rows(&truth))?;
-    roadtrack_core::io::mot::write_detections(&out_dir.join("det/det.txt"), &dets)?;
-    roadtrack_core::io::detections::write_detections(&out_dir.join("det/detections.csv"), &dets)?;
-    write_truth_csv(&out_dir.join("truth.csv"), &truth)?;
-    sim.calibration().save(&out_dir.join("calibration.toml"))?;
+    .write(&tmp.join("seqinfo.ini"))?;
+    roadtrack_core::io::mot::write_gt(&tmp.join("gt/gt.txt"), &gt_rows(&truth))?;
+    roadtrack_core::io::mot::write_detections(&tmp.join("det/det.txt"), &dets)?;
+    roadtrack_core::io::detections::write_detections(&tmp.join("det/detections.csv"), &dets)?;
+    write_truth_csv(&tmp.join("truth.csv"), &truth)?;
+    sim.calibration().save(&tmp.join("calibration.toml"))?;
     let provenance = format!(
         "# roadtrack simulate: the configuration that produced this folder (usable as --config).\n# seed = {seed}\n\n{}",
         config.to_toml()
     );
     roadtrack_core::io::atomic::write_bytes_atomic(
-        &out_dir.join("simulation.toml"),
+        &tmp.join("simulation.toml"),
         provenance.as_bytes(),
     )?;
+    dest.commit()?;
     let mut ids: Vec<(u64, bool)> = truth
         .iter()
         .map(|t| (t.id, t.class == ObjectClass::Pedestrian))

@@ -206,10 +206,11 @@ pub fn write_pairs(
             }
         }
     }
-    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    let dest = roadtrack_core::io::atomic::AtomicDir::create(out_dir)?;
+    let tmp = dest.temp_path().to_owned();
     let (mut n1, mut n2, mut nm) = (0usize, 0usize, 0usize);
     for (p, [f1, f2]) in frames.iter().enumerate() {
-        let dir = out_dir.join(format!("pair_{:04}", p + 1));
+        let dir = tmp.join(format!("pair_{:04}", p + 1));
         let d1: Vec<Detection> = f1.iter().map(|s| s.det.clone()).collect();
         let d2: Vec<Detection> = f2.iter().map(|s| s.det.clone()).collect();
         roadtrack_core::io::detections::write_detections(&dir.join("frame1.csv"), &d1)?;
@@ -241,7 +242,7 @@ pub fn write_pairs(
         n2 += f2.len();
         progress(p as u64 + 1, u64::from(pairs.n_pairs));
     }
-    cal.save(&out_dir.join("calibration.toml"))?;
+    cal.save(&tmp.join("calibration.toml"))?;
     #[derive(Serialize)]
     struct Provenance<'a> {
         seed: u64,
@@ -257,10 +258,8 @@ pub fn write_pairs(
         })
         .unwrap_or_default()
     );
-    roadtrack_core::io::atomic::write_bytes_atomic(
-        &out_dir.join("pairs.toml"),
-        provenance.as_bytes(),
-    )?;
+    roadtrack_core::io::atomic::write_bytes_atomic(&tmp.join("pairs.toml"), provenance.as_bytes())?;
+    dest.commit()?;
     let n = f64::from(pairs.n_pairs);
     Ok(PairsSummary {
         n_pairs: pairs.n_pairs,

@@ -5,7 +5,7 @@ use crate::overlay::{draw_box, id_colour};
 use image::RgbImage;
 use roadtrack_core::error::{Error, Result};
 use roadtrack_core::frame::Frame;
-use roadtrack_core::io::atomic::{write_atomic, write_bytes_atomic};
+use roadtrack_core::io::atomic::{AtomicDir, write_atomic, write_bytes_atomic};
 use roadtrack_core::track_point::TrackPoint;
 
 /// A grid of per-block object ids, row-major, `0` = no object: the MRF tracker's
@@ -29,7 +29,7 @@ impl BlockLabels<'_> {
     }
 }
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The Object-map drawn over `frame` (or over black when `None`, at the grid's size): each
 /// labelled block is tinted with its id's colour (half and half), and every point's box is
@@ -101,20 +101,24 @@ pub fn object_map_csv_rows(frame: u32, map: &BlockLabels<'_>) -> String {
 }
 
 /// Collects a per-frame dump of Object-maps: one PNG per frame as it comes, and
-/// `object_maps.csv` (header `frame,bx,by,id`) written on [`MapDump::finish`].
+/// `object_maps.csv` (header `frame,bx,by,id`), in a folder swapped in whole on
+/// [`MapDump::finish`] (an interrupted run leaves nothing, a rerun no stale frames).
 #[derive(Debug)]
 pub struct MapDump {
-    dir: PathBuf,
+    dir: AtomicDir,
     csv: String,
 }
 
 impl MapDump {
-    /// A dump into folder `dir` (created when needed).
-    pub fn new(dir: &Path) -> Self {
-        Self {
-            dir: dir.to_owned(),
+    /// A dump into folder `dir`.
+    ///
+    /// # Errors
+    /// `dir` exists and is not a folder; the temporary folder cannot be made.
+    pub fn new(dir: &Path) -> Result<Self> {
+        Ok(Self {
+            dir: AtomicDir::create(dir)?,
             csv: String::from("frame,bx,by,id\n"),
-        }
+        })
     }
 
     /// Adds one frame: writes `object_map_NNNNNN.png` and keeps its CSV rows.
@@ -124,16 +128,20 @@ impl MapDump {
         map: &BlockLabels<'_>,
         points: &[TrackPoint],
     ) -> Result<()> {
-        let path = self.dir.join(format!("object_map_{:06}.png", frame.index));
+        let path = self
+            .dir
+            .temp_path()
+            .join(format!("object_map_{:06}.png", frame.index));
         object_map_png(&path, map, Some(&frame.image), points)?;
         self.csv.push_str(&object_map_csv_rows(frame.index, map));
         Ok(())
     }
 
-    /// Writes `object_maps.csv`.
+    /// Writes `object_maps.csv` and puts the folder in place.
     pub fn finish(self) -> Result<()> {
-        let path = self.dir.join("object_maps.csv");
-        write_atomic(&path, |w| w.write_all(self.csv.as_bytes()))
+        let path = self.dir.temp_path().join("object_maps.csv");
+        write_atomic(&path, |w| w.write_all(self.csv.as_bytes()))?;
+        self.dir.commit()
     }
 }
 

@@ -212,7 +212,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let tracker: Box<dyn Tracker> = match (built.tracker, &args.object_maps) {
         (BuiltTracker::Mrf(mrf), Some(dir)) => Box::new(ObjectMapDump {
             mrf,
-            dump: Some(MapDump::new(dir)),
+            dump: Some(MapDump::new(dir)?),
         }),
         (t, _) => t.boxed(),
     };

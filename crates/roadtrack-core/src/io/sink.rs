@@ -5,7 +5,7 @@
 //! anything else is a folder that receives `NNNNNN.png` per frame (the frame's 1-based
 //! number, zero-padded to 6 digits), each written atomically.
 
-use super::atomic::write_bytes_atomic;
+use super::atomic::AtomicDir;
 use super::video::VideoWriter;
 use crate::error::{Error, Result};
 use image::RgbImage;
@@ -31,33 +31,32 @@ pub fn is_video_path(path: &Path) -> bool {
         .is_some_and(|e| VIDEO_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-/// A folder of PNG files, one per frame.
+/// A folder of PNG files, one per frame, swapped in whole at [`FrameSink::finish`]
+/// ([`AtomicDir`]): an interrupted render leaves no frames, and a finished one no stale
+/// frames of an earlier run.
 #[derive(Debug)]
 pub struct PngFolder {
-    dir: PathBuf,
+    dir: Option<AtomicDir>,
 }
 
 impl PngFolder {
-    /// Writes into `dir` (created when missing).
+    /// Writes into `dir` (created when missing, replaced when it exists).
     ///
     /// # Errors
-    /// `dir` exists and is not a folder, or cannot be created.
+    /// `dir` is `-` or exists and is not a folder; the temporary folder cannot be made.
     pub fn create(dir: &Path) -> Result<Self> {
-        if dir.exists() && !dir.is_dir() {
-            return Err(Error::Invalid(format!(
-                "{} exists and is not a folder",
-                dir.display()
-            )));
-        }
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         Ok(Self {
-            dir: dir.to_owned(),
+            dir: Some(AtomicDir::create(dir)?),
         })
     }
 
-    /// The path frame `index` is written to.
+    /// The path frame `index` is written to while the run lasts.
     pub fn frame_path(&self, index: u32) -> PathBuf {
-        self.dir.join(format!("{index:06}.png"))
+        let dir = self
+            .dir
+            .as_ref()
+            .map_or(Path::new("."), AtomicDir::temp_path);
+        dir.join(format!("{index:06}.png"))
     }
 }
 
@@ -78,12 +77,15 @@ pub fn encode_png(image: &RgbImage, path_for_errors: &Path) -> Result<Vec<u8>> {
 
 impl FrameSink for PngFolder {
     fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+        if self.dir.is_none() {
+            return Err(Error::Invalid("internal error: frame after finish".into()));
+        }
         let path = self.frame_path(index);
-        write_bytes_atomic(&path, &encode_png(image, &path)?)
+        std::fs::write(&path, encode_png(image, &path)?).map_err(|e| Error::io(&path, e))
     }
 
     fn finish(&mut self) -> Result<()> {
-        Ok(())
+        self.dir.take().map_or(Ok(()), AtomicDir::commit)
     }
 }
 

@@ -5,12 +5,13 @@
 //! and decodes every format the installed ffmpeg knows (DEPENDENCY_NOTES.md §1: about
 //! 500 frames/s of 768×576 on one core here).
 
+use super::atomic::TempOutput;
 use crate::error::{Error, Result};
 use image::RgbImage;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::thread::JoinHandle;
 
 const INSTALL_HINT: &str =
@@ -68,8 +69,30 @@ fn spawn_error(program: &'static str, e: &std::io::Error) -> Error {
 /// where [`VideoReader`] and [`VideoWriter`] start and stop the program.
 #[derive(Debug)]
 struct Ffmpeg {
-    child: Option<Child>,
+    child: Arc<Mutex<Option<Child>>>,
     stderr: Option<JoinHandle<String>>,
+}
+
+/// Every ffmpeg process started, for [`kill_ffmpeg_processes`].
+static CHILDREN: Mutex<Vec<Weak<Mutex<Option<Child>>>>> = Mutex::new(Vec::new());
+
+/// Kills every ffmpeg process this program still runs (for a signal handler that is about
+/// to exit, so no encoder finishes a file behind it). Returns how many it killed.
+pub fn kill_ffmpeg_processes() -> usize {
+    let children = match CHILDREN.lock() {
+        Ok(c) => c.clone(),
+        Err(poisoned) => poisoned.into_inner().clone(),
+    };
+    children
+        .iter()
+        .filter_map(Weak::upgrade)
+        .filter(|c| {
+            c.lock()
+                .ok()
+                .and_then(|mut c| c.as_mut().map(|c| c.kill().is_ok()))
+                .unwrap_or(false)
+        })
+        .count()
 }
 
 impl Ffmpeg {
@@ -85,11 +108,20 @@ impl Ffmpeg {
                 buf
             })
         });
-        let ffmpeg = Self {
-            child: Some(child),
-            stderr,
-        };
+        let child = Arc::new(Mutex::new(Some(child)));
+        if let Ok(mut all) = CHILDREN.lock() {
+            all.retain(|w| w.strong_count() > 0);
+            all.push(Arc::downgrade(&child));
+        }
+        let ffmpeg = Self { child, stderr };
         Ok((ffmpeg, stdin, stdout))
+    }
+
+    fn take(&self) -> Option<Child> {
+        match self.child.lock() {
+            Ok(mut c) => c.take(),
+            Err(poisoned) => poisoned.into_inner().take(),
+        }
     }
 
     /// Waits for ffmpeg to exit (the caller closes its pipes first). `Some((status,
@@ -98,7 +130,7 @@ impl Ffmpeg {
     /// # Errors
     /// The wait itself failed (named after `path`, the video).
     fn wait(&mut self, path: &Path) -> Result<Option<(ExitStatus, String)>> {
-        let Some(mut c) = self.child.take() else {
+        let Some(mut c) = self.take() else {
             return Ok(None);
         };
         let status = c.wait().map_err(|e| Error::io(path, e))?;
@@ -112,7 +144,7 @@ impl Ffmpeg {
 
     /// Kills ffmpeg when it still runs and reaps it (a reader or writer dropped early).
     fn kill(&mut self) {
-        if let Some(mut c) = self.child.take() {
+        if let Some(mut c) = self.take() {
             let _ = c.kill();
             let _ = c.wait();
         }
@@ -343,7 +375,7 @@ fn choose_codec(ext: &str, encoders: &str) -> Result<(&'static str, &'static [&'
 #[derive(Debug)]
 pub struct VideoWriter {
     path: PathBuf,
-    tmp: Option<tempfile::TempPath>,
+    tmp: Option<TempOutput>,
     ffmpeg: Ffmpeg,
     stdin: Option<ChildStdin>,
     width: u32,
@@ -379,18 +411,14 @@ impl VideoWriter {
             .map(str::to_ascii_lowercase)
             .unwrap_or_default();
         let (codec, options) = choose_codec(&ext, ffmpeg_encoders()?)?;
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
+        // The temporary ends in `.partial`, never in the video's extension, so a run killed
+        // by SIGKILL cannot leave what looks like a video; the container is named
+        // explicitly instead.
+        let tmp = TempOutput::create(path, &format!(".{ext}.partial"))?;
+        let container = match ext.as_str() {
+            "mkv" => "matroska",
+            other => other,
         };
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        // The temporary keeps the extension: ffmpeg picks the container from it.
-        let tmp = tempfile::Builder::new()
-            .prefix(".roadtrack-")
-            .suffix(&format!(".{ext}"))
-            .tempfile_in(dir)
-            .map_err(|e| Error::io(dir, e))?
-            .into_temp_path();
         let mut cmd = Command::new("ffmpeg");
         cmd.args(["-hide_banner", "-v", "error", "-y"])
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24"])
@@ -411,7 +439,8 @@ impl VideoWriter {
                 "-map_metadata",
                 "-1",
             ])
-            .arg(&*tmp)
+            .args(["-f", container])
+            .arg(tmp.temp_path())
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
@@ -502,8 +531,7 @@ impl VideoWriter {
                 self.path.display()
             )));
         }
-        tmp.persist(&self.path)
-            .map_err(|e| Error::io(&self.path, e.error))?;
+        tmp.commit()?;
         Ok(())
     }
 }
