@@ -89,3 +89,63 @@ pub fn load_config<T: serde::de::DeserializeOwned + Default>(path: Option<&Path>
         None => Ok(T::default()),
     }
 }
+
+/// The object detectors of `--detector`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DetectorArg {
+    /// Background subtraction (a background learnt from the input, then regions).
+    Background,
+    /// Public detections from a file: --detections F, by default the sequence's det/det.txt.
+    File,
+}
+
+/// Which detector finds the objects (`detect`, `track`, `render`, `demo`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct DetectorArgs {
+    /// Object detector (default: background subtraction).
+    #[arg(long, value_enum, value_name = "D")]
+    pub detector: Option<DetectorArg>,
+    /// Detections file for --detector file: a MOTChallenge det.txt or a detections CSV
+    /// (.csv); default: det/det.txt of the sequence folder given as input.
+    #[arg(long, value_name = "F")]
+    pub detections: Option<std::path::PathBuf>,
+}
+
+impl DetectorArgs {
+    /// The detector asked for; `None` leaves the choice to the method (its own background
+    /// detector). `background` is the background detector with `config`.
+    pub fn spec(
+        &self,
+        input: &Path,
+        background: impl FnOnce() -> Result<roadtrack::detect::background::BackgroundDetectorConfig>,
+    ) -> Result<Option<roadtrack::detect::DetectorSpec>> {
+        use roadtrack::detect::DetectorSpec;
+        let kind = match (self.detector, &self.detections) {
+            (None, Some(_)) => DetectorArg::File,
+            (Some(k), _) => k,
+            (None, None) => return Ok(None),
+        };
+        Ok(Some(match kind {
+            DetectorArg::Background => {
+                if self.detections.is_some() {
+                    anyhow::bail!("--detections needs --detector file");
+                }
+                DetectorSpec::Background(background()?)
+            }
+            DetectorArg::File => {
+                let path = match &self.detections {
+                    Some(p) => p.clone(),
+                    None => {
+                        roadtrack::detect::file::sequence_detections(input).with_context(|| {
+                            format!(
+                                "--detector file: {} has no det/det.txt; give --detections F",
+                                input.display()
+                            )
+                        })?
+                    }
+                };
+                DetectorSpec::File(path)
+            }
+        }))
+    }
+}

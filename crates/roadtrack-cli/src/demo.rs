@@ -167,6 +167,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
             &seq,
             &SourceOptions::default(),
             MethodConfig::defaults(method, cfg.seed),
+            None,
             vec![Box::new(GroundStage::new(&calibration, None, 0.5)?)],
             vec![
                 Box::new(MotSink::create(&mdir.join("tracks.txt"))?),

@@ -278,6 +278,7 @@ mod tests {
             video,
             &options,
             &roadtrack::io::source::open(video, &options)?.info,
+            None,
         )?;
         let mut tracker = FilterTracker::new(
             FilterMethod::Phd,

@@ -1,6 +1,6 @@
 //! `roadtrack track`: run a tracking method over a video, image folder or MOT sequence.
 
-use crate::common::{FrameArgs, Ui, load_config};
+use crate::common::{DetectorArgs, FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::analysis::ground::GroundStage;
 use roadtrack::analysis::kinematics::GroundPoint;
@@ -132,6 +132,8 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     pub object_maps: Option<PathBuf>,
     #[command(flatten)]
+    pub detector: DetectorArgs,
+    #[command(flatten)]
     pub frames: FrameArgs,
 }
 
@@ -207,8 +209,10 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             }
         }
     };
+    let own = method.background_detector();
+    let detector = args.detector.spec(&args.input, || Ok(own))?;
     let info = source::open(&args.input, &options)?.info.clone();
-    let built = method.build(&args.input, &options, &info)?;
+    let built = method.build(&args.input, &options, &info, detector)?;
     let tracker: Box<dyn Tracker> = match (built.tracker, &args.object_maps) {
         (BuiltTracker::Mrf(mrf), Some(dir)) => Box::new(ObjectMapDump {
             mrf,

@@ -7,12 +7,14 @@
 
 pub mod background;
 pub mod background_model;
+pub mod file;
 pub mod regions;
 
 use crate::detection::Detection;
 use crate::error::Result;
 use crate::frame::Frame;
 use image::GrayImage;
+use std::path::PathBuf;
 
 /// What a detector found in one frame.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -38,5 +40,26 @@ pub trait Detector {
 impl<F: FnMut(&Frame) -> Result<FrameDetections>> Detector for F {
     fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
         self(frame)
+    }
+}
+
+/// Which detector a run uses (`--detector`).
+pub enum DetectorSpec {
+    /// Background subtraction with this config, its model learnt by a first pass over the
+    /// input.
+    Background(background::BackgroundDetectorConfig),
+    /// Public detections from a file ([`file::FileDetector`]).
+    File(PathBuf),
+    /// A detector made elsewhere (the networks of `roadtrack-cnn`).
+    Given(Box<dyn Detector>),
+}
+
+impl std::fmt::Debug for DetectorSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DetectorSpec::Background(c) => f.debug_tuple("Background").field(c).finish(),
+            DetectorSpec::File(p) => f.debug_tuple("File").field(p).finish(),
+            DetectorSpec::Given(_) => f.write_str("Given(..)"),
+        }
     }
 }

@@ -3,14 +3,16 @@
 //! `roadtrack track`, `demo` and `bench`.
 
 use super::Tracker;
+use super::filter::config::LikelihoodKind;
 use super::filter::{FilterMethod, FilterTrackConfig, FilterTracker};
 use super::mrf::{MrfConfig, MrfTracker};
 use super::pipeline::{Pipeline, PointSink, PointStage, RunSummary};
 use super::relaxation::tracker::{RelaxationTracker, RelaxationTrackerConfig};
-use crate::detect::Detector;
 use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
 use crate::detect::background_model::{BackgroundConfig, bootstrap_from_source};
-use crate::error::Result;
+use crate::detect::file::FileDetector;
+use crate::detect::{Detector, DetectorSpec};
+use crate::error::{Error, Result};
 use crate::io::source::{self, SourceInfo, SourceOptions};
 use crate::likelihood::Likelihood;
 use serde::{Deserialize, Serialize};
@@ -155,6 +157,16 @@ impl MethodConfig {
         }
     }
 
+    /// The background detector the method uses when none is given: relaxation's
+    /// `--detector-config`, the filters' `[detector]`, the default for the MRF.
+    pub fn background_detector(&self) -> BackgroundDetectorConfig {
+        match self {
+            MethodConfig::Relaxation { detector, .. } => (**detector).clone(),
+            MethodConfig::Mrf { .. } => BackgroundDetectorConfig::default(),
+            MethodConfig::Filter { config, .. } => config.detector.clone(),
+        }
+    }
+
     /// The background model the method learns before tracking.
     pub fn background(&self) -> &BackgroundConfig {
         match self {
@@ -179,25 +191,83 @@ impl MethodConfig {
         }
     }
 
-    /// Learns the background by a first, read-only pass over `input` (the median of
-    /// `bootstrap_frames` frames spread over the selection, as `roadtrack detect`) and
-    /// builds the method's detector and tracker for frames like those of `info`.
+    /// Builds the method's detector and tracker for frames like those of `info`.
+    ///
+    /// The detector is `detector` when given (`--detector`), else the method's own
+    /// background detector (relaxation's `--detector-config`, the filters' `[detector]`;
+    /// none for the MRF, which reads pixels). A background model, where one is needed (the
+    /// background detector, the MRF, a filter likelihood that reads the foreground mask),
+    /// is learnt by a first, read-only pass over `input` (the median of `bootstrap_frames`
+    /// frames spread over the selection, as `roadtrack detect`).
     ///
     /// # Errors
-    /// An invalid config, an unreadable source.
-    pub fn build(self, input: &Path, options: &SourceOptions, info: &SourceInfo) -> Result<Built> {
+    /// An invalid config, an unreadable source or detections file, a foreground likelihood
+    /// without the background detector.
+    pub fn build(
+        self,
+        input: &Path,
+        options: &SourceOptions,
+        info: &SourceInfo,
+        detector: Option<DetectorSpec>,
+    ) -> Result<Built> {
         self.validate()?;
-        let model = bootstrap_from_source(input, options, self.background().clone())?;
+        let own = match &self {
+            MethodConfig::Relaxation { detector, .. } => Some((**detector).clone()),
+            MethodConfig::Mrf { .. } => None,
+            MethodConfig::Filter { config, .. } => Some(config.detector.clone()),
+        };
+        if let (MethodConfig::Filter { config, .. }, Some(spec)) = (&self, &detector)
+            && config.likelihood.kind != LikelihoodKind::Colour
+            && !matches!(spec, DetectorSpec::Background(_))
+        {
+            return Err(Error::Invalid(format!(
+                "the {:?} likelihood reads the background detector's foreground mask; \
+                 use --detector background or [likelihood] kind = \"colour\"",
+                config.likelihood.kind
+            )));
+        }
+        let spec = match (detector, own) {
+            (Some(spec), _) => Some(spec),
+            (None, Some(cfg)) => Some(DetectorSpec::Background(cfg)),
+            (None, None) => None,
+        };
+        // The MRF's own model, and the background detector's (one pass when they agree).
+        let mrf_model = match &self {
+            MethodConfig::Mrf { config, .. } => Some(bootstrap_from_source(
+                input,
+                options,
+                config.background.clone(),
+            )?),
+            _ => None,
+        };
+        let detector: Option<Box<dyn Detector>> = match spec {
+            None => None,
+            Some(DetectorSpec::Background(cfg)) => {
+                let m = match &mrf_model {
+                    Some(m) if *self.background() == cfg.background => m.clone(),
+                    _ => bootstrap_from_source(input, options, cfg.background.clone())?,
+                };
+                Some(Box::new(BackgroundDetector::with_model(cfg, m)?))
+            }
+            Some(DetectorSpec::File(path)) => {
+                Some(Box::new(FileDetector::open(&path, info.total_frames)?))
+            }
+            Some(DetectorSpec::Given(d)) => Some(d),
+        };
         Ok(match self {
-            MethodConfig::Relaxation { tracker, detector } => Built {
-                detector: Some(Box::new(BackgroundDetector::with_model(*detector, model)?)),
+            MethodConfig::Relaxation { tracker, .. } => Built {
+                detector,
                 tracker: BuiltTracker::Relaxation(RelaxationTracker::new(*tracker)?),
             },
             MethodConfig::Mrf { config, seed } => {
                 let mut t = MrfTracker::new(*config, info.width, info.height, seed)?;
-                t.set_background(model)?;
+                t.set_background(
+                    mrf_model.ok_or_else(|| {
+                        Error::Invalid("internal error: no MRF background".into())
+                    })?,
+                )?;
                 Built {
-                    detector: None,
+                    detector,
                     tracker: BuiltTracker::Mrf(Box::new(t)),
                 }
             }
@@ -207,10 +277,7 @@ impl MethodConfig {
                 model: network,
                 seed,
             } => Built {
-                detector: Some(Box::new(BackgroundDetector::with_model(
-                    config.detector.clone(),
-                    model,
-                )?)),
+                detector,
                 tracker: BuiltTracker::Filter(Box::new(FilterTracker::new(
                     method, &config, seed, network,
                 )?)),
@@ -230,12 +297,13 @@ pub fn track_source<'a>(
     input: &Path,
     options: &SourceOptions,
     method: MethodConfig,
+    detector: Option<DetectorSpec>,
     stages: Vec<Box<dyn PointStage + 'a>>,
     sinks: Vec<Box<dyn PointSink + 'a>>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<RunSummary> {
     let info = source::open(input, options)?.info.clone();
-    let built = method.build(input, options, &info)?;
+    let built = method.build(input, options, &info, detector)?;
     let frames = source::open(input, options)?;
     let mut pipeline = Pipeline {
         detector: built.detector,
@@ -287,12 +355,13 @@ mod tests {
                 dir.path(),
                 &opts,
                 MethodConfig::defaults(method, 7),
+                None,
                 Vec::new(),
                 vec![Box::new(&mut from_dir)],
                 &mut |_, _| {},
             )?;
             assert_eq!(s.frames, 20);
-            let built = MethodConfig::defaults(method, 7).build(dir.path(), &opts, &info)?;
+            let built = MethodConfig::defaults(method, 7).build(dir.path(), &opts, &info, None)?;
             let in_memory = run_frames(
                 built.detector,
                 built.tracker.boxed(),
