@@ -23,11 +23,14 @@ use roadtrack::rng::{Stream, rng, rng_for};
 
 /// Which classifier to train; picks the paper's hyper-parameters (METHODS.md §3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Preset {
     /// Person vs background: 30 epochs, batch 64, lr 1e-3.
+    #[cfg_attr(feature = "clap", value(help = "Person vs background"))]
     Person,
     /// Vehicle vs background: 20 epochs, batch 32, lr 1e-4.
+    #[cfg_attr(feature = "clap", value(help = "Vehicle vs background"))]
     Vehicle,
 }
 

@@ -12,34 +12,55 @@ use serde::{Deserialize, Serialize};
 
 /// Which scenario to simulate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum SceneKind {
     /// A straight one-way road (seed 000's setting).
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Straight one-way road, 700 m, 2 lanes (seed 000)")
+    )]
     Road,
     /// A signalised four-way crossing with pedestrians.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Signalised 4-way intersection with pedestrians")
+    )]
     Intersection,
     /// A busy signalised mid-block crosswalk (seed 002's scene).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Busy crosswalk, groups of pedestrians (seed 002)")
+    )]
     Crossing,
 }
 
 /// How the camera sees the scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum ViewKind {
     /// Straight down, orthographic, fixed metres per pixel (seed 000).
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "Nadir, 0.33 m/px"))]
     Aerial,
     /// A pinhole camera on a pole, tilted down (seed 002).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Pinhole camera on a pole, about 8 m up")
+    )]
     Oblique,
 }
 
 /// Image file format of `img1/`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum ImageFormat {
     /// JPEG (MOTChallenge's format; about 15× smaller than PNG on noisy frames).
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "JPEG (MOTChallenge's format)"))]
     Jpeg,
     /// Lossless PNG.
     Png,

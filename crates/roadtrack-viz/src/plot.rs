@@ -31,12 +31,15 @@ pub const LINE_CHART_SIZE: (u32, u32) = (900, 600);
 
 /// The image coordinate along which a time-space diagram measures position.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Axis {
     /// Horizontal: `x_px`, or `x_m` with ground coordinates.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "Horizontal (x_px or x_m)"))]
     X,
     /// Vertical: `y_px`, or `y_m` with ground coordinates.
+    #[cfg_attr(feature = "clap", value(help = "Vertical (y_px or y_m)"))]
     Y,
 }
 

@@ -33,13 +33,16 @@ use std::collections::{BTreeMap, VecDeque};
 
 /// What decides the colour of a box and its trail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ColourBy {
     /// One colour per id ([`id_colour`]): identity switches show as colour changes. The
     /// label carries a swatch of the class colour.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "One colour per track id"))]
     Id,
     /// One colour per class ([`class_colour`]); ids are told apart by their labels.
+    #[cfg_attr(feature = "clap", value(help = "One colour per class"))]
     Class,
 }
 

@@ -70,7 +70,7 @@ pub struct Args {
     /// Class handling: `pedestrian` (MOT17, default), `per-class` (each class on its own,
     /// tracker classes from a trajectories CSV) or `agnostic` (classes merged).
     #[arg(long, value_enum, value_name = "MODE")]
-    pub classes: Option<ClassesArg>,
+    pub classes: Option<ClassMode>,
     /// MOT17 class numbers evaluated in per-class and agnostic modes (default 1,3,4,5,6).
     #[arg(long, value_delimiter = ',', value_name = "C,C,…")]
     pub class_list: Option<Vec<u32>>,
@@ -130,18 +130,6 @@ pub struct Args {
     pub alpha: Option<f64>,
 }
 
-/// `--classes` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ClassesArg {
-    /// TrackEval MOT17: pedestrians only.
-    Pedestrian,
-    /// Each class evaluated on its own, then combined.
-    PerClass,
-    /// All listed classes merged into one.
-    #[value(alias = "class-agnostic")]
-    Agnostic,
-}
-
 /// Wrong usage: clap's message format and exit status 2.
 fn usage(msg: impl std::fmt::Display) -> ! {
     clap::Error::raw(clap::error::ErrorKind::ArgumentConflict, format!("{msg}\n")).exit()
@@ -199,11 +187,7 @@ fn read_tracker(path: &Path) -> Result<(Vec<MotTrackRow>, Option<Vec<u32>>)> {
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let mut cfg: EvalConfig = load_config(args.config.as_deref())?;
     if let Some(c) = args.classes {
-        cfg.mode = match c {
-            ClassesArg::Pedestrian => ClassMode::Pedestrian,
-            ClassesArg::PerClass => ClassMode::PerClass,
-            ClassesArg::Agnostic => ClassMode::ClassAgnostic,
-        };
+        cfg.mode = c;
     }
     if let Some(l) = &args.class_list {
         cfg.classes.clone_from(l);

@@ -17,7 +17,7 @@ pub struct RelaxArgs {
     pub config: Option<PathBuf>,
     /// Method of Table 1 [default: colour-bidirectional (d)].
     #[arg(long, value_enum, value_name = "V")]
-    pub variant: Option<VariantArg>,
+    pub variant: Option<RelaxationVariant>,
     /// A, eqs. 19–20: weight of a label's own evidence [default: 0.5].
     #[arg(long, value_name = "A")]
     pub own_weight: Option<f64>,
@@ -45,44 +45,7 @@ pub struct RelaxArgs {
     pub max_iterations: Option<u32>,
     /// How probabilities become pairs [default: argmax, the paper's].
     #[arg(long, value_enum)]
-    pub decision: Option<DecisionArg>,
-}
-
-/// `--variant` values (INTERFACES.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum VariantArg {
-    /// (d) bidirectional, colour start: the paper's method.
-    #[value(alias = "color-bidirectional", alias = "d")]
-    ColourBidirectional,
-    /// (c) bidirectional, uniform start.
-    #[value(alias = "c")]
-    Bidirectional,
-    /// (b) unidirectional, colour start.
-    #[value(alias = "color-unidirectional", alias = "b")]
-    ColourUnidirectional,
-    /// (a) unidirectional, uniform start.
-    #[value(alias = "a")]
-    Unidirectional,
-}
-
-impl From<VariantArg> for RelaxationVariant {
-    fn from(v: VariantArg) -> Self {
-        match v {
-            VariantArg::ColourBidirectional => RelaxationVariant::ColourBidirectional,
-            VariantArg::Bidirectional => RelaxationVariant::Bidirectional,
-            VariantArg::ColourUnidirectional => RelaxationVariant::ColourUnidirectional,
-            VariantArg::Unidirectional => RelaxationVariant::Unidirectional,
-        }
-    }
-}
-
-/// `--decision` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum DecisionArg {
-    /// Each vehicle its most probable label (the paper's).
-    Argmax,
-    /// Pairs one-to-one, greedily by probability.
-    OneToOne,
+    pub decision: Option<DecisionRule>,
 }
 
 impl RelaxArgs {
@@ -91,7 +54,7 @@ impl RelaxArgs {
     pub fn config(&self) -> Result<RelaxationConfig> {
         let mut c: RelaxationConfig = load_config(self.config.as_deref())?;
         if let Some(v) = self.variant {
-            c.variant = v.into();
+            c.variant = v;
         }
         let set = |field: &mut f64, v: Option<f64>| {
             if let Some(v) = v {
@@ -109,10 +72,7 @@ impl RelaxArgs {
             c.max_iterations = n;
         }
         if let Some(d) = self.decision {
-            c.decision = match d {
-                DecisionArg::Argmax => DecisionRule::Argmax,
-                DecisionArg::OneToOne => DecisionRule::OneToOne,
-            };
+            c.decision = d;
         }
         c.validate()?;
         Ok(c)

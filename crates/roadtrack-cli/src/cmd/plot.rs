@@ -33,8 +33,8 @@ pub struct Args {
     pub time_space: bool,
     /// Position axis of the time-space diagram (ground metres when the trajectories CSV
     /// has them, else pixels).
-    #[arg(long, value_enum, default_value_t = AxisArg::X, requires = "time_space")]
-    pub axis: AxisArg,
+    #[arg(long, value_enum, default_value_t = Axis::X, requires = "time_space")]
+    pub axis: Axis,
     /// Frame rate for the times of a MOTChallenge tracks file, frames/s.
     #[arg(long, default_value_t = 10.0, value_name = "FPS")]
     pub fps: f64,
@@ -62,15 +62,6 @@ pub struct Args {
     /// Leave out the track ids at the ends of the lines.
     #[arg(long)]
     pub no_labels: bool,
-}
-
-/// `--axis` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum AxisArg {
-    /// Horizontal (x_px or x_m).
-    X,
-    /// Vertical (y_px or y_m).
-    Y,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
@@ -107,11 +98,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         ..PlotConfig::default()
     };
     if args.time_space {
-        let axis = match args.axis {
-            AxisArg::X => Axis::X,
-            AxisArg::Y => Axis::Y,
-        };
-        plot_time_space(&points, axis, &config, &args.output)?;
+        plot_time_space(&points, args.axis, &config, &args.output)?;
     } else {
         let background = match &args.background {
             Some(p) => Some(load_background(p)?),

@@ -37,8 +37,8 @@ pub struct Args {
     #[arg(long, default_value_t = 30, value_name = "N")]
     pub trail: u32,
     /// Colour boxes and trails by track id or by class.
-    #[arg(long, value_enum, default_value_t = ColourArg::Id)]
-    pub colour_by: ColourArg,
+    #[arg(long, value_enum, default_value_t = ColourBy::Id)]
+    pub colour_by: ColourBy,
     /// Leave out the id/class labels.
     #[arg(long)]
     pub no_labels: bool,
@@ -47,15 +47,6 @@ pub struct Args {
     pub label_size: Option<f32>,
     #[command(flatten)]
     pub frames: FrameArgs,
-}
-
-/// `--colour-by` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ColourArg {
-    /// One colour per track id.
-    Id,
-    /// One colour per class.
-    Class,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
@@ -73,10 +64,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         .map_or("tracks".into(), |n| n.to_string_lossy().into_owned());
     let config = RenderConfig {
         trail_frames: args.trail,
-        colour_by: match args.colour_by {
-            ColourArg::Id => ColourBy::Id,
-            ColourArg::Class => ColourBy::Class,
-        },
+        colour_by: args.colour_by,
         labels: !args.no_labels,
         label_height_px: args.label_size,
         tracks_title: format!("tracks: {tracks_title}"),

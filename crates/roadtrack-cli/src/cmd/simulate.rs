@@ -26,10 +26,10 @@ pub struct Args {
     pub output: PathBuf,
     /// Scenario [default: road, or the config's].
     #[arg(long, value_enum)]
-    pub scene: Option<SceneArg>,
+    pub scene: Option<SceneKind>,
     /// Camera [default: aerial, or the config's].
     #[arg(long, value_enum)]
-    pub view: Option<ViewArg>,
+    pub view: Option<ViewKind>,
     /// Frames to write [default: 300, or the config's; with --from-trajectories the
     /// file's whole time span].
     #[arg(long, value_name = "N")]
@@ -51,7 +51,7 @@ pub struct Args {
     pub height: Option<u32>,
     /// Format of the frames in img1/ [default: jpeg].
     #[arg(long, value_enum)]
-    pub image_format: Option<ImageFormatArg>,
+    pub image_format: Option<ImageFormat>,
     /// Render these trajectories (header `time_s,id,class,x_m,y_m,heading_deg,length_m,
     /// width_m`, optional `r,g,b`, `height_m`) instead of simulating traffic.
     #[arg(long, value_name = "F.csv", conflicts_with = "pairs")]
@@ -71,49 +71,13 @@ pub struct Args {
     pub position_noise: f64,
 }
 
-/// `--scene` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum SceneArg {
-    /// Straight one-way road, 700 m, 2 lanes (seed 000).
-    Road,
-    /// Signalised 4-way intersection with pedestrians.
-    Intersection,
-    /// Busy crosswalk, groups of pedestrians (seed 002).
-    Crossing,
-}
-
-/// `--view` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ViewArg {
-    /// Nadir, 0.33 m/px.
-    Aerial,
-    /// Pinhole camera on a pole, about 8 m up.
-    Oblique,
-}
-
-/// `--image-format` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ImageFormatArg {
-    /// JPEG (MOTChallenge's format).
-    Jpeg,
-    /// Lossless PNG.
-    Png,
-}
-
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let mut config: SimConfig = load_config(args.config.as_deref())?;
     if let Some(s) = args.scene {
-        config.scene = match s {
-            SceneArg::Road => SceneKind::Road,
-            SceneArg::Intersection => SceneKind::Intersection,
-            SceneArg::Crossing => SceneKind::Crossing,
-        };
+        config.scene = s;
     }
     if let Some(v) = args.view {
-        config.view = match v {
-            ViewArg::Aerial => ViewKind::Aerial,
-            ViewArg::Oblique => ViewKind::Oblique,
-        };
+        config.view = v;
     }
     if let Some(n) = args.frames {
         config.frames = n;
@@ -128,10 +92,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         config.height = h;
     }
     if let Some(f) = args.image_format {
-        config.image_format = match f {
-            ImageFormatArg::Jpeg => ImageFormat::Jpeg,
-            ImageFormatArg::Png => ImageFormat::Png,
-        };
+        config.image_format = f;
     }
     config.validate()?;
     let out = &args.output;

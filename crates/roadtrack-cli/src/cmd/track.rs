@@ -12,25 +12,14 @@ use roadtrack::io::source;
 use roadtrack::track::filter::{FilterMethod, FilterTrackConfig};
 use roadtrack::track::method::BuiltTracker;
 use roadtrack::track::mrf::object_map::BLOCK_PX;
-use roadtrack::track::mrf::{MrfConfig, MrfTracker};
+use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
 use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
-use roadtrack::track::{FramePoints, MethodConfig, Pipeline, PointSink, PointStage, Tracker};
+use roadtrack::track::{
+    FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
+};
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
 use std::path::PathBuf;
-
-/// Tracking methods (METHODS.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Method {
-    /// Bidirectional probabilistic relaxation between consecutive frames' detections (seed 000).
-    Relaxation,
-    /// Spatio-temporal MRF model on 8×8 blocks (seed 002).
-    Mrf,
-    /// Basic particle filter, ρ particles per object, colour or CNN likelihood (seed 004).
-    Pf,
-    /// Labelled SMC-PHD filter, colour or CNN likelihood (seed 004).
-    Phd,
-}
 
 /// The likelihood h(y | x) of pf and phd.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -41,24 +30,6 @@ pub enum LikelihoodArg {
     Cnn,
     /// The SSDLite pedestrian detector (scripts/setup.sh --models; or --model F.pb).
     Ssd,
-}
-
-/// MRF model variant.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum MrfVariantArg {
-    /// 2000: representative vector per object, no smoothness term.
-    Legacy,
-    /// 2004: local vectors with the smoothness term.
-    Improved,
-}
-
-/// Ground point of a box.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum GroundPointArg {
-    /// Middle of the bottom edge (oblique views).
-    BottomCentre,
-    /// Box centre (nadir views).
-    Centre,
 }
 
 /// Track every object: MOTChallenge tracks, and optionally trajectories CSV (with metres
@@ -94,7 +65,7 @@ pub struct Args {
     /// Which box point stands on the ground (default: centre for metres-per-pixel
     /// calibrations, bottom-centre otherwise).
     #[arg(long, value_enum)]
-    pub ground_point: Option<GroundPointArg>,
+    pub ground_point: Option<GroundPoint>,
     /// Half-width of the speed smoother's window, s.
     #[arg(long, default_value_t = 0.5)]
     pub smooth_s: f64,
@@ -109,7 +80,7 @@ pub struct Args {
     pub max_missed_frames: Option<u32>,
     /// MRF: model variant (overrides the config).
     #[arg(long, value_enum)]
-    pub mrf_variant: Option<MrfVariantArg>,
+    pub mrf_variant: Option<MrfVariant>,
     /// pf/phd: the likelihood h(y | x).
     #[arg(long, value_enum, default_value_t = LikelihoodArg::Colour)]
     pub likelihood: LikelihoodArg,
@@ -173,10 +144,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         Method::Mrf => {
             let mut config: MrfConfig = load_config(args.config.as_deref())?;
             if let Some(v) = args.mrf_variant {
-                config.variant = match v {
-                    MrfVariantArg::Legacy => roadtrack::track::mrf::MrfVariant::Legacy,
-                    MrfVariantArg::Improved => roadtrack::track::mrf::MrfVariant::Improved,
-                };
+                config.variant = v;
             }
             MethodConfig::Mrf {
                 config: Box::new(config),
@@ -222,12 +190,9 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     };
     let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
     if let Some(cal) = &calibration {
-        let gp = args.ground_point.map(|g| match g {
-            GroundPointArg::BottomCentre => GroundPoint::BottomCentre,
-            GroundPointArg::Centre => GroundPoint::Centre,
-        });
         stages.push(Box::new(
-            GroundStage::new(cal, gp, args.smooth_s).context("putting the tracks on the ground")?,
+            GroundStage::new(cal, args.ground_point, args.smooth_s)
+                .context("putting the tracks on the ground")?,
         ));
     }
     let mut sinks: Vec<Box<dyn PointSink>> = vec![Box::new(MotSink::create(&args.output)?)];

@@ -40,8 +40,8 @@ pub struct Args {
     #[arg(short, long, default_value = "model.onnx")]
     pub output: PathBuf,
     /// Target class and the paper's hyper-parameters for it.
-    #[arg(long, value_enum, default_value_t = PresetArg::Person)]
-    pub preset: PresetArg,
+    #[arg(long, value_enum, default_value_t = Preset::Person)]
+    pub preset: Preset,
     /// Epochs (preset: person 30, vehicle 20).
     #[arg(long)]
     pub epochs: Option<u32>,
@@ -68,9 +68,11 @@ pub struct Args {
     pub report: Option<PathBuf>,
 }
 
-/// `--preset` values.
+/// `--preset` values without the `cnn` feature: there is no trainer then, nor
+/// `roadtrack_cnn::train::Preset`, but the command line stays the same.
+#[cfg(not(feature = "cnn"))]
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum PresetArg {
+pub enum Preset {
     /// Person vs background.
     Person,
     /// Vehicle vs background.
@@ -94,11 +96,7 @@ pub fn run(args: Args, _ui: &Ui) -> Result<()> {
 
 #[cfg(feature = "cnn")]
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    let preset = match args.preset {
-        PresetArg::Person => Preset::Person,
-        PresetArg::Vehicle => Preset::Vehicle,
-    };
-    let mut config = TrainConfig::preset(preset);
+    let mut config = TrainConfig::preset(args.preset);
     config.seed = args.seed;
     if let Some(v) = args.epochs {
         config.epochs = v;

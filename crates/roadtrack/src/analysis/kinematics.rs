@@ -17,12 +17,18 @@ use std::collections::{BTreeMap, VecDeque};
 /// Which image point of a box stands on the ground.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum GroundPoint {
     /// The middle of the box's bottom edge: where a vehicle or a person touches the road in
     /// an oblique view. Default.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Middle of the bottom edge (oblique views)")
+    )]
     BottomCentre,
     /// The box centre: right for nadir (aerial) views.
+    #[cfg_attr(feature = "clap", value(help = "Box centre (nadir views)"))]
     Centre,
 }
 

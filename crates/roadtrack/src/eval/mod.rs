@@ -59,19 +59,33 @@ pub(crate) type FastMap<K, V> =
 
 /// Which classes are evaluated and how tracker boxes are assigned to them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum ClassMode {
     /// MOTChallenge (TrackEval `MotChallenge2DBox`, MOT17): only pedestrians (class 1) are
     /// evaluated; every tracker box takes part whatever its class.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = "TrackEval MOT17: pedestrians only"))]
     Pedestrian,
     /// Each class of [`EvalConfig::classes`] that occurs in the ground truth or the tracks
     /// is evaluated on its own with the tracker boxes of that class; the headline numbers
     /// combine the classes by summing counts (TrackEval's "detection averaged" combination),
     /// and [`EvalReport::class_averaged`] holds the mean over classes.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Each class evaluated on its own, then combined")
+    )]
     PerClass,
     /// The classes of [`EvalConfig::classes`] are merged into one; every tracker box takes
     /// part whatever its class.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            name = "agnostic",
+            alias = "class-agnostic",
+            help = "All listed classes merged into one"
+        )
+    )]
     ClassAgnostic,
 }
 

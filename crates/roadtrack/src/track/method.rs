@@ -21,6 +21,7 @@ use std::path::Path;
 /// The tracking methods (METHODS.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
     /// Bidirectional probabilistic relaxation between consecutive frames' detections (seed 000).
     Relaxation,

@@ -40,13 +40,22 @@ use serde::{Deserialize, Serialize};
 /// Which model of the paper to run (METHODS.md §2 "Two variants").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum MrfVariant {
     /// 2000 model: `M` and `D` use each object's representative (most frequent) vector;
     /// no `f` term; vectors are not optimised.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "2000: representative vector per object, no smoothness term")
+    )]
     Legacy,
     /// 2004 model: local per-block vectors, optimised jointly with the ids, and the `f`
     /// smoothness term (eq. 4).
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "2004: local vectors with the smoothness term")
+    )]
     Improved,
 }
 

@@ -11,15 +11,24 @@ use serde::{Deserialize, Serialize};
 
 /// How probabilities become pairs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum DecisionRule {
     /// The paper's: each vehicle its most probable label, independently.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Each vehicle its most probable label (the paper's)")
+    )]
     Argmax,
     /// Pairs one-to-one, greedily by probability: every real label at least as probable as
     /// its vehicle's no-match label is a candidate pair; candidates are taken in order of
     /// decreasing probability when neither vehicle is taken yet. Where the argmax already
     /// is one-to-one the two rules agree.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Pairs one-to-one, greedily by probability")
+    )]
     OneToOne,
 }
 

@@ -73,18 +73,33 @@ use std::str::FromStr;
 pub const COLOUR_MAX: f64 = 255.0;
 
 /// The four methods of Table 1 (METHODS.md §1 "Variants").
+///
+/// Declared from (d) to (a), the order in which `--variant` lists them; [`RelaxationVariant::ALL`]
+/// gives Table 1's order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum RelaxationVariant {
-    /// (a) unidirectional, uniform start.
-    Unidirectional,
-    /// (b) unidirectional, colour start.
-    ColourUnidirectional,
-    /// (c) bidirectional, uniform start.
-    Bidirectional,
     /// (d) bidirectional, colour start: the proposed method and the default.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            alias = "color-bidirectional",
+            alias = "d",
+            help = "(d) bidirectional, colour start: the paper's method"
+        )
+    )]
     ColourBidirectional,
+    /// (c) bidirectional, uniform start.
+    #[cfg_attr(feature = "clap", value(alias = "c"))]
+    Bidirectional,
+    /// (b) unidirectional, colour start.
+    #[cfg_attr(feature = "clap", value(alias = "color-unidirectional", alias = "b"))]
+    ColourUnidirectional,
+    /// (a) unidirectional, uniform start.
+    #[cfg_attr(feature = "clap", value(alias = "a"))]
+    Unidirectional,
 }
 
 impl RelaxationVariant {
