@@ -1,14 +1,17 @@
 //! `roadtrack detect`: moving-object extraction for fixed cameras.
 
-use crate::common::{FrameArgs, Ui, load_config};
+use crate::common::{DetectorArgs, FrameArgs, Ui, load_config};
 use anyhow::{Context, Result};
-use roadtrack::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
+use roadtrack::detect::DetectorSpec;
+use roadtrack::detect::background::BackgroundDetectorConfig;
+use roadtrack::io::atomic::AtomicDir;
 use roadtrack::io::{detections::write_detections, source};
 use std::path::PathBuf;
 
-/// Find moving objects (background subtraction → regions) in every frame.
+/// Find the objects in every frame (by default: background subtraction → regions).
 ///
-/// For each region: centre, box, area and mean RGB, written as a detections CSV.
+/// For each object: centre, box, mean RGB (and area, class, score where the detector gives
+/// them), written as a detections CSV.
 #[derive(Debug, clap::Args)]
 #[command(
     after_help = "Example:\n  roadtrack detect ../shared/data/vtest.avi -o detections.csv --overlay overlay/ --end 100"
@@ -38,6 +41,8 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     pub masks: Option<PathBuf>,
     #[command(flatten)]
+    pub detector: DetectorArgs,
+    #[command(flatten)]
     pub frames: FrameArgs,
 }
 
@@ -65,25 +70,27 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         total.map_or("unknown".into(), |t| t.to_string())
     ));
     let bar = ui.progress(None, "background");
-    let mut detector = BackgroundDetector::bootstrap_source(config, &args.input, &options)?;
+    let spec = args
+        .detector
+        .spec(&args.input, || Ok(config.clone()))?
+        .unwrap_or(DetectorSpec::Background(config));
+    if args.masks.is_some() && !matches!(spec, DetectorSpec::Background(_)) {
+        anyhow::bail!("--masks needs a detector with a foreground mask (--detector background)");
+    }
+    let mut detector = spec.build(&args.input, &options, &info)?;
     bar.finish_and_clear();
-
     let frames = source::open(&args.input, &options)?;
     let bar = ui.progress(total.map(u64::from), "detect");
+    let mut overlay = args.overlay.as_deref().map(AtomicDir::create).transpose()?;
+    let mut masks = args.masks.as_deref().map(AtomicDir::create).transpose()?;
     let mut all = Vec::new();
     let mut n_frames = 0u64;
     for frame in frames {
         let frame = frame?;
-        let found = detector.process(&frame)?;
-        let dets: Vec<_> = found
-            .regions
-            .iter()
-            .enumerate()
-            .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1))
-            .collect();
-        if let Some(dir) = &args.overlay {
+        let found = detector.detect(&frame)?;
+        if let Some(dir) = &overlay {
             let mut img = frame.image.clone();
-            for d in &dets {
+            for d in &found.detections {
                 if let Some(b) = d.bbox() {
                     roadtrack_viz::overlay::draw_box(
                         &mut img,
@@ -92,14 +99,17 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                     );
                 }
             }
-            save_png(dir, frame.index, &img)?;
+            save_png(dir.temp_path(), frame.index, &img)?;
         }
-        if let Some(dir) = &args.masks {
-            save_png(dir, frame.index, &found.mask)?;
+        if let (Some(dir), Some(mask)) = (&masks, &found.foreground) {
+            save_png(dir.temp_path(), frame.index, mask)?;
         }
-        all.extend(dets);
+        all.extend(found.detections);
         n_frames += 1;
         bar.inc(1);
+    }
+    for dir in [overlay.take(), masks.take()].into_iter().flatten() {
+        dir.commit()?;
     }
     bar.finish_and_clear();
     write_detections(&args.output, &all)?;

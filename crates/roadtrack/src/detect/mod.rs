@@ -63,3 +63,34 @@ impl std::fmt::Debug for DetectorSpec {
         }
     }
 }
+
+impl DetectorSpec {
+    /// Makes the detector for `input`: a background detector learns its model by a first,
+    /// read-only pass over the input (as `roadtrack detect`); a detections file is read and
+    /// checked against the input's length.
+    ///
+    /// # Errors
+    /// An invalid config, an unreadable input or detections file.
+    pub fn build(
+        self,
+        input: &std::path::Path,
+        options: &crate::io::SourceOptions,
+        info: &crate::io::SourceInfo,
+    ) -> Result<Box<dyn Detector>> {
+        Ok(match self {
+            DetectorSpec::Background(cfg) => {
+                cfg.validate()?;
+                let model = background_model::bootstrap_from_source(
+                    input,
+                    options,
+                    cfg.background.clone(),
+                )?;
+                Box::new(background::BackgroundDetector::with_model(cfg, model)?)
+            }
+            DetectorSpec::File(path) => {
+                Box::new(file::FileDetector::open(&path, info.total_frames)?)
+            }
+            DetectorSpec::Given(d) => d,
+        })
+    }
+}
