@@ -142,6 +142,13 @@ pub fn mean_colour(image: &RgbImage, bbox: &BBox) -> Option<[f64; 3]> {
     Some(sum.map(|s| s as f64 / n))
 }
 
+/// The one-pixel box of the image pixel nearest `p`.
+fn nearest_pixel(image: &RgbImage, p: crate::geometry::Point) -> BBox {
+    let x = p.x.floor().clamp(0.0, f64::from(image.width().max(1) - 1));
+    let y = p.y.floor().clamp(0.0, f64::from(image.height().max(1) - 1));
+    BBox::new(x, y, 1.0, 1.0)
+}
+
 impl Detector for FileDetector {
     fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
         let mut detections = self.by_frame.remove(&frame.index).unwrap_or_default();
@@ -150,7 +157,13 @@ impl Detector for FileDetector {
             // detector numbers its output (a MOT file's ids are −1).
             d.id = i as u64 + 1;
             if d.colour_rgb.is_none() {
-                d.colour_rgb = d.bbox().and_then(|b| mean_colour(&frame.image, &b));
+                // Choice: a box that misses the image (public detections may stick out)
+                // takes the colour of the image pixel nearest its centre.
+                let b = d
+                    .bbox()
+                    .unwrap_or_else(|| BBox::from_centre(d.pos_px, 1.0, 1.0));
+                d.colour_rgb = mean_colour(&frame.image, &b)
+                    .or_else(|| mean_colour(&frame.image, &nearest_pixel(&frame.image, d.pos_px)));
             }
         }
         Ok(FrameDetections {
