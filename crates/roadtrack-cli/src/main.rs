@@ -53,8 +53,7 @@ fn remove_outputs_on_signals() {
     std::thread::spawn(move || {
         if let Some(sig) = signals.forever().next() {
             roadtrack::io::video::kill_ffmpeg_processes();
-            roadtrack::io::atomic::remove_pending_outputs();
-            std::process::exit(128 + sig);
+            roadtrack::io::atomic::remove_pending_outputs_and_exit(128 + sig);
         }
     });
 }

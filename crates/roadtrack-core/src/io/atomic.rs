@@ -20,59 +20,87 @@ use crate::error::{Error, Result};
 use std::collections::BTreeSet;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
-/// Temporary outputs being written, for [`remove_pending_outputs`].
+/// Temporary outputs being written, for [`remove_pending_outputs`]. A temporary is made
+/// and registered, and committed and unregistered, under this lock, so a signal handler
+/// that takes it sees every temporary that exists and no half-committed output.
 static PENDING: Mutex<BTreeSet<PathBuf>> = Mutex::new(BTreeSet::new());
+
+fn pending() -> MutexGuard<'static, BTreeSet<PathBuf>> {
+    PENDING.lock().unwrap_or_else(PoisonError::into_inner)
+}
 
 /// Registers a temporary path while it lives.
 #[derive(Debug)]
 struct Pending(PathBuf);
 
 impl Pending {
-    fn new(path: &Path) -> Self {
-        if let Ok(mut set) = PENDING.lock() {
-            set.insert(path.to_owned());
-        }
-        Self(path.to_owned())
+    /// Makes a temporary with `make` and registers the path `path_of` gives, under the
+    /// registry's lock.
+    fn make<T>(
+        make: impl FnOnce() -> Result<T>,
+        path_of: impl FnOnce(&T) -> PathBuf,
+    ) -> Result<(T, Self)> {
+        let mut set = pending();
+        let t = make()?;
+        let path = path_of(&t);
+        set.insert(path.clone());
+        Ok((t, Self(path)))
+    }
+
+    /// Runs `commit` and unregisters the path, under the registry's lock.
+    fn commit<R>(self, commit: impl FnOnce() -> R) -> R {
+        let mut set = pending();
+        let r = commit();
+        set.remove(&self.0);
+        drop(set);
+        std::mem::forget(self);
+        r
     }
 }
 
 impl Drop for Pending {
     fn drop(&mut self) {
-        if let Ok(mut set) = PENDING.lock() {
-            set.remove(&self.0);
-        }
+        pending().remove(&self.0);
     }
 }
 
 /// Removes every temporary output still being written (files and folders). For a signal
 /// handler that is about to exit the process; returns how many it removed.
 pub fn remove_pending_outputs() -> usize {
-    remove_pending_where(|_| true)
+    remove_pending(&mut pending(), |_| true)
 }
 
-/// [`remove_pending_outputs`] for the temporary paths `select` picks.
-fn remove_pending_where(select: impl Fn(&Path) -> bool) -> usize {
-    let paths: Vec<PathBuf> = match PENDING.lock() {
-        Ok(set) => set.iter().filter(|p| select(p)).cloned().collect(),
-        Err(poisoned) => poisoned
-            .into_inner()
-            .iter()
-            .filter(|p| select(p))
-            .cloned()
-            .collect(),
-    };
-    paths
-        .iter()
-        .filter(|p| {
-            if p.is_dir() {
-                std::fs::remove_dir_all(p).is_ok()
+/// Removes every temporary output still being written, then exits the process with
+/// `code`, holding the registry's lock so that no thread makes a new temporary meanwhile.
+pub fn remove_pending_outputs_and_exit(code: i32) -> ! {
+    let mut set = pending();
+    remove_pending(&mut set, |_| true);
+    std::process::exit(code)
+}
+
+/// Removes the registered temporaries `select` picks. A folder is first renamed aside, so
+/// a thread still writing into it cannot add entries while it is removed.
+fn remove_pending(set: &mut BTreeSet<PathBuf>, select: impl Fn(&Path) -> bool) -> usize {
+    let paths: Vec<PathBuf> = set.iter().filter(|p| select(p)).cloned().collect();
+    let mut removed = 0;
+    for p in paths {
+        set.remove(&p);
+        let ok = if p.is_dir() {
+            let gone = p.with_extension("removing");
+            let doomed = if std::fs::rename(&p, &gone).is_ok() {
+                gone
             } else {
-                std::fs::remove_file(p).is_ok()
-            }
-        })
-        .count()
+                p
+            };
+            std::fs::remove_dir_all(&doomed).is_ok()
+        } else {
+            std::fs::remove_file(&p).is_ok()
+        };
+        removed += usize::from(ok);
+    }
+    removed
 }
 
 /// Where an output path leads.
@@ -195,8 +223,8 @@ impl AtomicFile {
                 Target::InPlace(BufWriter::new(f))
             }
             Destination::File(target) => {
-                let tmp = temp_beside(&target, ".tmp")?;
-                let pending = Pending::new(tmp.path());
+                let (tmp, pending) =
+                    Pending::make(|| temp_beside(&target, ".tmp"), |t| t.path().to_owned())?;
                 Target::Temp {
                     target,
                     out: BufWriter::new(tmp),
@@ -234,9 +262,9 @@ impl AtomicFile {
                     .into_inner()
                     .map_err(|e| Error::io(&path, e.into_error()))?;
                 tmp.as_file().sync_all().map_err(|e| Error::io(&path, e))?;
-                tmp.persist(&target)
-                    .map_err(|e| Error::io(&path, e.error))?;
-                Ok(())
+                _pending
+                    .commit(|| tmp.persist(&target).map(drop))
+                    .map_err(|e| Error::io(&path, e.error))
             }
         }
     }
@@ -290,8 +318,10 @@ impl TempOutput {
                 )));
             }
         };
-        let tmp = temp_beside(&target, suffix)?.into_temp_path();
-        let pending = Pending::new(&tmp);
+        let (tmp, pending) = Pending::make(
+            || Ok(temp_beside(&target, suffix)?.into_temp_path()),
+            |t| t.to_path_buf(),
+        )?;
         Ok(Self {
             tmp,
             target,
@@ -310,9 +340,15 @@ impl TempOutput {
     /// # Errors
     /// The rename fails.
     pub fn commit(self) -> Result<()> {
-        self.tmp
-            .persist(&self.target)
-            .map_err(|e| Error::io(&self.path, e.error))
+        let Self {
+            tmp,
+            target,
+            path,
+            _pending,
+        } = self;
+        _pending
+            .commit(|| tmp.persist(&target))
+            .map_err(|e| Error::io(&path, e.error))
     }
 }
 
@@ -350,11 +386,16 @@ impl AtomicDir {
             _ => PathBuf::from("."),
         };
         std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-        let tmp = tempfile::Builder::new()
-            .prefix(".roadtrack-")
-            .suffix(".partial")
-            .tempdir_in(&parent)
-            .map_err(|e| Error::io(&parent, e))?;
+        let (tmp, pending) = Pending::make(
+            || {
+                tempfile::Builder::new()
+                    .prefix(".roadtrack-")
+                    .suffix(".partial")
+                    .tempdir_in(&parent)
+                    .map_err(|e| Error::io(&parent, e))
+            },
+            |t| t.path().to_owned(),
+        )?;
         #[cfg(unix)]
         {
             // TempDir is made private (0700); a finished folder gets the usual mode.
@@ -364,7 +405,6 @@ impl AtomicDir {
             std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(mode))
                 .map_err(|e| Error::io(tmp.path(), e))?;
         }
-        let pending = Pending::new(tmp.path());
         Ok(Self {
             tmp: Some(tmp),
             target,
@@ -388,29 +428,39 @@ impl AtomicDir {
     ///
     /// # Errors
     /// A rename fails (the old folder is then put back).
-    pub fn commit(mut self) -> Result<()> {
-        let Some(tmp) = self.tmp.take() else {
+    pub fn commit(self) -> Result<()> {
+        let Self {
+            tmp,
+            target,
+            path,
+            _pending,
+        } = self;
+        let Some(tmp) = tmp else {
             return Ok(());
         };
-        let new = tmp.keep();
-        let old = if self.target.exists() {
-            let aside = new.with_extension("old");
-            std::fs::rename(&self.target, &aside).map_err(|e| Error::io(&self.path, e))?;
-            Some(aside)
-        } else {
-            None
-        };
-        if let Err(e) = std::fs::rename(&new, &self.target) {
-            if let Some(aside) = &old {
-                let _ = std::fs::rename(aside, &self.target);
+        // Choice: the whole swap runs under the registry's lock, so an interrupt waits
+        // for it rather than leaving the old folder moved aside.
+        _pending.commit(|| {
+            let new = tmp.keep();
+            let old = if target.exists() {
+                let aside = new.with_extension("old");
+                std::fs::rename(&target, &aside).map_err(|e| Error::io(&path, e))?;
+                Some(aside)
+            } else {
+                None
+            };
+            if let Err(e) = std::fs::rename(&new, &target) {
+                if let Some(aside) = &old {
+                    let _ = std::fs::rename(aside, &target);
+                }
+                let _ = std::fs::remove_dir_all(&new);
+                return Err(Error::io(&path, e));
             }
-            let _ = std::fs::remove_dir_all(&new);
-            return Err(Error::io(&self.path, e));
-        }
-        if let Some(aside) = old {
-            std::fs::remove_dir_all(&aside).map_err(|e| Error::io(&aside, e))?;
-        }
-        Ok(())
+            if let Some(aside) = old {
+                std::fs::remove_dir_all(&aside).map_err(|e| Error::io(&aside, e))?;
+            }
+            Ok(())
+        })
     }
 }
 
@@ -587,7 +637,10 @@ mod tests {
         let d = AtomicDir::create(&dir.path().join("frames"))?;
         assert_eq!(names(dir.path())?.len(), 2);
         // Only this test's temporaries: other tests write outputs at the same time.
-        assert_eq!(remove_pending_where(|p| p.starts_with(dir.path())), 2);
+        assert_eq!(
+            remove_pending(&mut pending(), |p| p.starts_with(dir.path())),
+            2
+        );
         assert!(names(dir.path())?.is_empty());
         drop((f, d));
         Ok(())
