@@ -7,7 +7,7 @@ Writes crates/roadtrack/tests/golden/filter/stonesoup_ospa.csv   (OSPA per step,
        crates/roadtrack/tests/golden/filter/stonesoup_summary.json
 Usage: pip install stonesoup==1.9.1 && python3 scripts/stonesoup_compare.py
 The scenario model (matched in both filters) is PointScenarioConfig::default() in
-crates/roadtrack/src/filter/scenario.rs.
+crates/roadtrack-sim/src/points.rs.
 """
 import csv
 import datetime

@@ -95,6 +95,61 @@ impl BBox {
     }
 }
 
+/// A rectangular region of a filter's state space: `[x0, x1] × [y0, y1]` (image px or any
+/// units), e.g. the surveillance region of the PHD filter and of the point simulator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SurveillanceRegion {
+    /// Left edge.
+    pub x0: f64,
+    /// Top edge.
+    pub y0: f64,
+    /// Right edge.
+    pub x1: f64,
+    /// Bottom edge.
+    pub y1: f64,
+}
+
+impl SurveillanceRegion {
+    /// The region `[x0, x1] × [y0, y1]`.
+    pub const fn new(x0: f64, y0: f64, x1: f64, y1: f64) -> Self {
+        Self { x0, y0, x1, y1 }
+    }
+
+    /// The whole image of `width × height` px.
+    pub fn image(width: u32, height: u32) -> Self {
+        Self::new(0.0, 0.0, f64::from(width), f64::from(height))
+    }
+
+    /// Width.
+    pub fn width(&self) -> f64 {
+        self.x1 - self.x0
+    }
+
+    /// Height.
+    pub fn height(&self) -> f64 {
+        self.y1 - self.y0
+    }
+
+    /// Area.
+    pub fn area(&self) -> f64 {
+        self.width() * self.height()
+    }
+
+    /// Whether `p` is inside (edges included).
+    pub fn contains(&self, p: Point) -> bool {
+        p.x >= self.x0 && p.x <= self.x1 && p.y >= self.y0 && p.y <= self.y1
+    }
+
+    /// Whether the region has positive, finite width and height.
+    pub fn is_valid(&self) -> bool {
+        [self.x0, self.y0, self.x1, self.y1]
+            .iter()
+            .all(|v| v.is_finite())
+            && self.x1 > self.x0
+            && self.y1 > self.y0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,6 +12,7 @@
 //! - [`write_pairs`] writes two-frame matching problems for `roadtrack sweep`;
 //! - [`Simulation`] (an iterator of [`SimStep`]) and [`simulate_in_memory`] give the same
 //!   data without touching the disk, for tests of the trackers;
+//! - [`points`] simulates point measurements with known truth (for `roadtrack filter`);
 //! - [`benchmark`] times simulation, rendering and encoding for `roadtrack bench`.
 //!
 //! ```no_run
@@ -27,6 +28,7 @@ pub mod config;
 pub mod external;
 mod output;
 mod pairs;
+pub mod points;
 pub mod render;
 pub mod scene;
 pub mod traffic;

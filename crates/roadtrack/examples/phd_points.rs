@@ -10,7 +10,7 @@
 
 use roadtrack::io::points::{read_measurements, write_estimates, write_measurements};
 use roadtrack::track::filter::points::{PointFilterConfig, filter_points};
-use roadtrack::track::filter::scenario::{PointScenarioConfig, simulate_points};
+use roadtrack_sim::points::{PointScenarioConfig, simulate_points};
 use std::path::PathBuf;
 use std::time::Instant;
 

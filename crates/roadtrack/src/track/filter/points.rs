@@ -263,8 +263,8 @@ fn bounding_region(ms: &[Measurement]) -> SurveillanceRegion {
 
 #[cfg(test)]
 mod tests {
-    use super::super::scenario::{PointScenarioConfig, simulate_points};
     use super::*;
+    use roadtrack_sim::points::{PointScenarioConfig, simulate_points};
 
     /// OSPA distance (Schuhmacher et al. 2008) of order 1 with cut-off `c`, by brute-force
     /// assignment over permutations of the smaller set (sets here have ≤ 8 points).

@@ -1,17 +1,15 @@
-//! A seeded point-target scenario with known truth: constant-velocity targets (white-noise
-//! acceleration) that are born (Poisson), survive with `p_s` or leave the region, are
-//! detected with `p_D` with Gaussian position noise, among Poisson clutter uniform over the
-//! region. Used by the PHD tests and the Stone Soup comparison
-//! (`crates/roadtrack/tests/golden/filter/`).
+//! Point measurements with known truth, for `roadtrack filter`: constant-velocity targets
+//! (white-noise acceleration) that are born (Poisson), survive with `p_s` or leave the
+//! region, are detected with `p_D` with Gaussian position noise, among Poisson clutter
+//! uniform over the region. Used by the PHD tests, the `phd_points` example and the Stone
+//! Soup comparison (`crates/roadtrack/tests/golden/filter/`).
 
-use super::SurveillanceRegion;
-use super::motion::ConstantVelocity;
-use crate::error::{Error, Result};
-use crate::geometry::Point;
-use crate::io::points::{Measurement, PointEstimate};
-use crate::rng::{Stream, rng_for};
 use rand::RngExt as _;
 use rand_distr::{Distribution, Normal, Poisson, StandardNormal};
+use roadtrack_core::error::{Error, Result};
+use roadtrack_core::geometry::{Point, SurveillanceRegion};
+use roadtrack_core::io::points::{Measurement, PointEstimate};
+use roadtrack_core::rng::{Rng, Stream, rng_for};
 use serde::{Deserialize, Serialize};
 
 /// Parameters of a point scenario.
@@ -110,8 +108,7 @@ pub fn simulate_points(config: &PointScenarioConfig, seed: u64) -> Result<PointS
     }
     let mut rng = rng_for(seed, Stream::Scenario, 0x0050_4F49_4E54);
     let r = config.region;
-    let motion = ConstantVelocity::acceleration(config.process_sigma);
-    let poisson = |rate: f64, rng: &mut crate::rng::Rng| -> u64 {
+    let poisson = |rate: f64, rng: &mut Rng| -> u64 {
         if rate <= 0.0 {
             return 0;
         }
@@ -126,7 +123,7 @@ pub fn simulate_points(config: &PointScenarioConfig, seed: u64) -> Result<PointS
     for step in 1..=config.steps {
         if step > 1 {
             alive.retain_mut(|(_, s)| {
-                motion.propagate_one(s, 1.0, &mut rng);
+                white_noise_acceleration(s, config.process_sigma, &mut rng);
                 let survives = rng.random::<f64>() < config.survival_prob;
                 survives && r.contains(Point::new(s[0], s[1]))
             });
@@ -180,6 +177,20 @@ pub fn simulate_points(config: &PointScenarioConfig, seed: u64) -> Result<PointS
     })
 }
 
+/// One step (`dt = 1`) of the constant-velocity model with white-noise acceleration `σ`
+/// per axis on `s = (x, y, v_x, v_y)`: the truth model of the scenario, the same as the
+/// filters' `ConstantVelocity::acceleration(σ)` (`roadtrack::track::filter::motion`).
+fn white_noise_acceleration(s: &mut [f64; 4], sigma: f64, rng: &mut Rng) {
+    let dt = 1.0;
+    let n1: f64 = StandardNormal.sample(rng);
+    let n2: f64 = StandardNormal.sample(rng);
+    let (ax, ay) = (sigma * n1, sigma * n2);
+    s[0] += s[2] * dt + 0.5 * ax * dt * dt;
+    s[1] += s[3] * dt + 0.5 * ay * dt * dt;
+    s[2] += ax * dt;
+    s[3] += ay * dt;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,13 +216,16 @@ mod tests {
 #[cfg(test)]
 mod golden {
     use super::*;
-    use crate::io::points::{write_estimates, write_measurements};
+    use roadtrack_core::io::points::{write_estimates, write_measurements};
 
     /// The committed Stone Soup comparison scenario is exactly the generator's output
     /// (`cargo run -p roadtrack --example phd_points -- crates/roadtrack/tests/golden/filter 7`).
     #[test]
     fn committed_comparison_scenario_matches_the_generator() -> Result<()> {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/filter");
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../roadtrack/tests/golden/filter"
+        );
         let s = simulate_points(&PointScenarioConfig::default(), 7)?;
         let tmp = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
         let (m, t) = (tmp.path().join("m.csv"), tmp.path().join("t.csv"));

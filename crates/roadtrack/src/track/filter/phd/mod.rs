@@ -1,0 +1,78 @@
+//! Labelled SMC-PHD filter (METHODS.md §3 "Extended method", seed 004 §4; Vo, Singh &
+//! Doucet 2003 for the SMC-PHD, Ikoma 2010 for labels).
+//!
+//! The particle weights approximate the PHD (intensity) of the multi-object state: their sum
+//! is the expected number of objects. One step is
+//!
+//! - b) survival: propagate by [`ConstantVelocity`](super::motion::ConstantVelocity),
+//!   `w̃ = p_s · w` ([`LabelledPhd::predict`]);
+//! - c) birth: particles with total weight `μ_Γ` (grid, [`LabelledPhd::add_grid_births`], or
+//!   around measurements, [`LabelledPhd::add_measurement_births`]);
+//! - d) update, eqs. 11–13 ([`LabelledPhd::update_image`], [`LabelledPhd::update_points`]);
+//! - e) labels: likelihood threshold, border exit, 2-means split, mesh birth, merge
+//!   ([`LabelledPhd::update_labels`]);
+//! - f) stratified resampling to `ρ` particles per expected object ([`LabelledPhd::resample`]).
+//!
+//! Step a) (uniform initial particles, weighted by `h`, resampled, labelled by k-means) is
+//! [`LabelledPhd::initialise_uniform`]. [`PhdTracker`] runs the steps on frames with a
+//! [`Likelihood`](crate::likelihood::Likelihood); [`super::points::filter_points`] on point
+//! measurements.
+//!
+//! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
+//! `tracker.rs` (the filter on frames), `tests.rs`.
+
+mod config;
+mod labelled;
+#[cfg(test)]
+mod tests;
+mod tracker;
+
+pub use config::PhdConfig;
+pub use labelled::LabelledPhd;
+#[cfg(test)]
+use labelled::kmeans;
+pub use tracker::PhdTracker;
+
+use crate::error::Result;
+use crate::geometry::Point;
+use std::time::Duration;
+
+/// A batch likelihood evaluation: `h` for each position into the output slice.
+pub type BatchEval<'a> = dyn FnMut(&[Point], &mut [f64]) -> Result<()> + 'a;
+
+/// One label's estimate at a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LabelEstimate {
+    /// The label (≥ 1).
+    pub label: u32,
+    /// Weighted mean position.
+    pub pos: Point,
+    /// Weighted mean velocity, units per unit time.
+    pub vel: Point,
+    /// Sum of the label's weights (its expected count).
+    pub weight: f64,
+}
+
+/// Wall time spent in each stage, summed over steps.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilterStageTimes {
+    /// b) and c): propagation and births.
+    pub predict: Duration,
+    /// Likelihood evaluation (`h` for every particle).
+    pub likelihood: Duration,
+    /// d): weight update, eqs. 11–13.
+    pub update: Duration,
+    /// e): label rules.
+    pub labels: Duration,
+    /// f): resampling and estimate extraction.
+    pub resample: Duration,
+    /// Number of steps summed.
+    pub steps: u64,
+}
+
+impl FilterStageTimes {
+    /// Total over stages.
+    pub fn total(&self) -> Duration {
+        self.predict + self.likelihood + self.update + self.labels + self.resample
+    }
+}

@@ -1,0 +1,230 @@
+//! [`PhdTracker`]: the labelled SMC-PHD filter on frames with an image likelihood.
+
+use super::super::SurveillanceRegion;
+use super::{FilterStageTimes, LabelledPhd, PhdConfig};
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::geometry::{BBox, Point};
+use crate::likelihood::Likelihood;
+use crate::track_point::TrackPoint;
+use std::time::Instant;
+
+/// How a [`PhdTracker`] starts.
+#[derive(Debug, Clone)]
+enum Start {
+    /// From the birth process alone.
+    Births,
+    /// `ρ` particles around each `(position, velocity)`.
+    At(Vec<(Point, Point)>),
+    /// Step a): uniform particles weighted by `h`, k-means with this many objects.
+    Uniform(usize),
+}
+
+/// The labelled SMC-PHD filter on frames with an image likelihood (METHODS.md §3): grid
+/// births, per-label update (eqs. 11–13), label rules, stratified resampling. Labels are
+/// the track ids.
+pub struct PhdTracker {
+    config: PhdConfig,
+    seed: u64,
+    likelihood: Box<dyn Likelihood>,
+    filter: Option<LabelledPhd>,
+    start: Start,
+    frame_size: (u32, u32),
+    times: FilterStageTimes,
+    positions: Vec<Point>,
+    h: Vec<f64>,
+    grid_births: bool,
+}
+
+impl std::fmt::Debug for PhdTracker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PhdTracker")
+            .field("config", &self.config)
+            .field("seed", &self.seed)
+            .field("filter", &self.filter)
+            .finish_non_exhaustive()
+    }
+}
+
+impl PhdTracker {
+    /// A tracker that starts from the birth process alone.
+    ///
+    /// # Errors
+    /// When the config is invalid.
+    pub fn new(config: PhdConfig, likelihood: Box<dyn Likelihood>, seed: u64) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            seed,
+            likelihood,
+            filter: None,
+            start: Start::Births,
+            frame_size: (0, 0),
+            times: FilterStageTimes::default(),
+            positions: Vec::new(),
+            h: Vec::new(),
+            grid_births: true,
+        })
+    }
+
+    /// Turns the paper's grid births (step c) on (the default) or off, e.g. when births
+    /// come from detections ([`PhdTracker::step_with_births`]).
+    pub fn set_grid_births(&mut self, on: bool) {
+        self.grid_births = on;
+    }
+
+    /// Removes every particle of `labels` (see [`LabelledPhd::remove_labels`]).
+    pub fn remove_labels(&mut self, labels: &[u32]) {
+        if let Some(f) = self.filter.as_mut() {
+            f.remove_labels(labels);
+        }
+    }
+
+    /// Starts the first frame with `ρ` particles around each detection (one label each);
+    /// call before the first [`PhdTracker::step`].
+    pub fn start_from_detections(&mut self, detections: &[crate::detection::Detection]) {
+        self.start = Start::At(
+            detections
+                .iter()
+                .map(|d| (d.pos_px, Point::default()))
+                .collect(),
+        );
+    }
+
+    /// Starts the first frame with step a) of the paper for `n_objects` objects.
+    pub fn start_uniform(&mut self, n_objects: usize) {
+        self.start = Start::Uniform(n_objects);
+    }
+
+    /// The filter state (after the first step).
+    pub fn filter(&self) -> Option<&LabelledPhd> {
+        self.filter.as_ref()
+    }
+
+    /// The expected number of objects (sum of weights); 0 before the first step.
+    pub fn expected_count(&self) -> f64 {
+        self.filter
+            .as_ref()
+            .map_or(0.0, LabelledPhd::expected_count)
+    }
+
+    /// Wall time per stage so far.
+    pub fn stage_times(&self) -> FilterStageTimes {
+        self.times
+    }
+
+    /// Advances by one frame; returns the reported labels as track points sorted by id.
+    ///
+    /// # Errors
+    /// When the frame size changes or the likelihood fails.
+    pub fn step(&mut self, frame: &Frame) -> Result<Vec<TrackPoint>> {
+        self.step_with_births(frame, &[], 0, 0.0)
+    }
+
+    /// [`PhdTracker::step`] with detection births: `per_point` birth particles around each
+    /// of `births` ([`LabelledPhd::add_births_at`]), in addition to the grid births when
+    /// they are on.
+    ///
+    /// # Errors
+    /// When the frame size changes or the likelihood fails.
+    pub fn step_with_births(
+        &mut self,
+        frame: &Frame,
+        births: &[Point],
+        per_point: usize,
+        spread_px: f64,
+    ) -> Result<Vec<TrackPoint>> {
+        let (w, h) = frame.size();
+        let t0 = Instant::now();
+        self.likelihood.begin_frame(&frame.image)?;
+        self.times.likelihood += t0.elapsed();
+        let t0 = Instant::now();
+        let first = match self.filter {
+            None => {
+                let mut f = LabelledPhd::new(
+                    self.config.clone(),
+                    SurveillanceRegion::image(w, h),
+                    self.seed,
+                )?;
+                self.frame_size = (w, h);
+                match std::mem::replace(&mut self.start, Start::Births) {
+                    Start::Births => {}
+                    Start::At(objects) => f.initialise_at(&objects, self.config.initial_spread_px),
+                    Start::Uniform(n) => {
+                        let lik = &self.likelihood;
+                        let image = &frame.image;
+                        f.initialise_uniform(n, &mut |pos, out| lik.evaluate(image, pos, out))?;
+                    }
+                }
+                self.filter = Some(f);
+                true
+            }
+            Some(_) => {
+                if (w, h) != self.frame_size {
+                    return Err(Error::FrameSize {
+                        frame: frame.index,
+                        got: (w, h),
+                        expected: self.frame_size,
+                    });
+                }
+                false
+            }
+        };
+        let Some(filter) = self.filter.as_mut() else {
+            return Ok(Vec::new());
+        };
+        if !first {
+            filter.predict(1.0);
+        }
+        if self.grid_births {
+            filter.add_grid_births();
+        }
+        filter.add_births_at(births, per_point, spread_px);
+        self.times.predict += t0.elapsed();
+
+        let t0 = Instant::now();
+        filter.particles().positions_into(&mut self.positions);
+        self.h.clear();
+        self.h.resize(self.positions.len(), 0.0);
+        self.likelihood
+            .evaluate(&frame.image, &self.positions, &mut self.h)?;
+        for (dst, &v) in filter.particles_mut().h.iter_mut().zip(&self.h) {
+            *dst = if v.is_finite() {
+                v.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+        self.times.likelihood += t0.elapsed();
+
+        let t0 = Instant::now();
+        filter.update_image();
+        self.times.update += t0.elapsed();
+        let t0 = Instant::now();
+        filter.update_labels();
+        self.times.labels += t0.elapsed();
+
+        let t0 = Instant::now();
+        let out = filter
+            .estimates()
+            .into_iter()
+            .map(|e| TrackPoint {
+                frame: frame.index,
+                time_s: frame.time_s,
+                id: u64::from(e.label),
+                class: self.config.class.clone(),
+                bbox: BBox::from_centre(
+                    e.pos,
+                    self.config.object_width_px,
+                    self.config.object_height_px,
+                ),
+                score: e.weight.min(1.0),
+                ground: None,
+            })
+            .collect();
+        filter.resample();
+        self.times.resample += t0.elapsed();
+        self.times.steps += 1;
+        Ok(out)
+    }
+}
