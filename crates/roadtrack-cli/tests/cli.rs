@@ -1,33 +1,12 @@
 //! End-to-end tests of the `roadtrack` binary.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{bin, fixture, stderr, vtest};
+
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
-
-fn fixture(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../roadtrack/tests/fixtures")
-        .join(rel)
-}
-
-fn vtest() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/vtest.avi");
-    let ok = p.is_file() && roadtrack::io::video::ffmpeg_available();
-    if !ok {
-        eprintln!("note: skipping, needs ffmpeg and ../shared/data/vtest.avi");
-    }
-    ok.then_some(p)
-}
 
 fn run(cmd: &mut Command) -> Output {
     cmd.output().expect("run roadtrack")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 #[test]

@@ -2,13 +2,12 @@
 //! (TrackEval's numbers, `crates/roadtrack/tests/golden/metrics/`) and on small inputs whose
 //! answers are known by hand.
 
+mod common;
+use common::{bin, stderr};
+
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
+use std::process::Output;
 
 fn golden(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -23,10 +22,6 @@ fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Output {
         c.arg(a);
     }
     c.output().expect("run roadtrack")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 fn json_of(o: &Output) -> Value {

@@ -2,6 +2,9 @@
 //! (`crates/roadtrack/tests/golden/filter/`, README there: seed 7, the scenario's true
 //! model).
 
+mod common;
+use common::stderr;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -41,10 +44,6 @@ fn filter(input: &Path, out: &Path, extra: &[&str]) -> Output {
         .args(extra)
         .output()
         .expect("run roadtrack")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 fn read(p: &Path) -> Vec<u8> {

@@ -7,19 +7,11 @@
 //! FNV-1a digests in `<case>/digests.txt`. Regenerate after a deliberate change with
 //! `UPDATE_GOLDEN=1 cargo test -p roadtrack-cli --test golden` and commit the diff.
 
+mod common;
+use common::{bin, fixture};
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
-
-fn fixture(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../roadtrack/tests/fixtures")
-        .join(rel)
-}
 
 fn golden_dir(case: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

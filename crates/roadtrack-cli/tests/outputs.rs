@@ -2,25 +2,15 @@
 //! place, symbolic links followed, folders swapped in whole, nothing left behind after
 //! SIGINT or SIGTERM.
 
+mod common;
+use common::{bin, names};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
-
 fn tiny() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../roadtrack/tests/fixtures/tiny_sequence")
-}
-
-fn names(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .expect("read_dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 #[cfg(unix)]

@@ -1,12 +1,11 @@
 //! End-to-end tests of `roadtrack simulate`, `match`, `sweep` and `experiment` (the real
 //! binary). Relaxation fixtures: `crates/roadtrack/tests/fixtures/relaxation/README.md`.
 
+mod common;
+use common::{bin, stderr, stdout};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../roadtrack/tests/fixtures/relaxation")
@@ -14,14 +13,6 @@ fn fixtures() -> PathBuf {
 
 fn run(cmd: &mut Command) -> Output {
     cmd.output().expect("run roadtrack")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
 fn ok(o: &Output) {

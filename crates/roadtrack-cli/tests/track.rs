@@ -1,12 +1,10 @@
 //! End-to-end tests of `roadtrack track`.
 
+mod common;
+use common::bin;
+
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::Path;
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
 
 fn simulate(dir: &Path, scene: SceneKind, view: ViewKind, frames: u32) {
     let cfg = SimConfig {

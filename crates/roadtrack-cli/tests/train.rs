@@ -2,21 +2,15 @@
 //! MOTChallenge sequence; the written model is loaded back through the tracker's loader.
 #![cfg(feature = "cnn")]
 
+mod common;
+use common::{bin, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use roadtrack::geometry::{BBox, Point};
 use roadtrack::io::mot::{MotGtRow, write_gt};
 use roadtrack::io::seqinfo::SeqInfo;
 use roadtrack_cnn::{CnnConfig, OnnxClassifier};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A bright upright bar on noise (positive) or noise only (negative), 24×12 px.
 fn patch(positive: bool, k: u32) -> image::RgbImage {

@@ -2,13 +2,12 @@
 //! sequence (fixtures/README.md: a red 12 × 8 box with top-left (4 + 3i, 16) and a blue
 //! 10 × 10 box with top-left (80 − 5i, 44) in frame i of 10, 96 × 72 px).
 
+mod common;
+use common::{bin, stderr};
+
 use roadtrack_viz::overlay::id_colour;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
-}
 
 fn tiny() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../roadtrack/tests/fixtures/tiny_sequence")
@@ -16,10 +15,6 @@ fn tiny() -> PathBuf {
 
 fn run(cmd: &mut Command) -> Output {
     cmd.output().expect("run roadtrack")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Tracks that follow the fixture's boxes exactly: id 1 the red box, id 2 the blue one.

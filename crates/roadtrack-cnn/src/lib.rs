@@ -25,7 +25,6 @@ pub mod net;
 pub mod train;
 pub mod window;
 
-pub mod bench;
 pub mod export;
 pub mod likelihood;
 pub mod onnx;

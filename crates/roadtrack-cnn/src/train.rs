@@ -185,7 +185,7 @@ impl Patches {
         &self.data[i * n..(i + 1) * n]
     }
     /// Appends the `rect` of `image` stretched to the patch size, preprocessed, as `label`.
-    pub(crate) fn push_stretched(
+    pub fn push_stretched(
         &mut self,
         image: &RgbImage,
         rect: BBox,

@@ -13,7 +13,8 @@
 //! - [`Simulation`] (an iterator of [`SimStep`]) and [`simulate_in_memory`] give the same
 //!   data without touching the disk, for tests of the trackers;
 //! - [`points`] simulates point measurements with known truth (for `roadtrack filter`);
-//! - [`benchmark`] times simulation, rendering and encoding for `roadtrack bench`.
+//! - [`testkit`] (feature `testkit`): small generated scenes for other crates' tests and
+//!   benchmarks.
 //!
 //! ```no_run
 //! use roadtrack_sim::{SimConfig, SceneKind, ViewKind, simulate_in_memory};
@@ -31,6 +32,8 @@ mod pairs;
 pub mod points;
 pub mod render;
 pub mod scene;
+#[cfg(feature = "testkit")]
+pub mod testkit;
 pub mod traffic;
 
 pub use config::{
@@ -40,8 +43,7 @@ pub use config::{
 };
 pub use external::ExternalTrajectories;
 pub use output::{
-    SimBenchmark, SimSummary, benchmark, gt_rows, simulate, simulate_from_trajectories,
-    write_truth_csv,
+    SimSummary, encode_frame, gt_rows, simulate, simulate_from_trajectories, write_truth_csv,
 };
 pub use pairs::{PairsConfig, PairsSummary, write_pairs};
 

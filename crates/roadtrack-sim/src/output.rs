@@ -31,7 +31,6 @@ use roadtrack_core::io::seqinfo::SeqInfo;
 use roadtrack_core::io::table::num;
 use roadtrack_core::io::write_atomic;
 use std::path::Path;
-use std::time::Instant;
 
 /// What [`simulate`] wrote.
 #[derive(Debug, Clone, PartialEq)]
@@ -105,7 +104,11 @@ pub fn write_truth_csv(path: &Path, rows: &[TruthRow]) -> Result<()> {
     })
 }
 
-fn encode(step: &SimStep, config: &SimConfig) -> Result<Vec<u8>> {
+/// Encodes a rendered frame as `img1/` holds it (`config.image_format`, JPEG quality).
+///
+/// # Errors
+/// The encoder fails.
+pub fn encode_frame(step: &SimStep, config: &SimConfig) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
     let img = &step.frame.image;
     let res = match config.image_format {
@@ -164,7 +167,7 @@ fn write_sequence(
             break;
         }
         batch.par_iter().try_for_each(|step| -> Result<()> {
-            let bytes = encode(step, &config)?;
+            let bytes = encode_frame(step, &config)?;
             let path = img_dir.join(format!("{:06}.{ext}", step.frame.index));
             roadtrack_core::io::atomic::write_bytes_atomic(&path, &bytes)
         })?;
@@ -261,54 +264,4 @@ pub fn simulate_from_trajectories(
         out_dir,
         progress,
     )
-}
-
-/// Timings of the simulator's stages (for `roadtrack bench`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SimBenchmark {
-    /// Frames produced.
-    pub frames: u32,
-    /// Image size, px.
-    pub size: (u32, u32),
-    /// Scene set-up: warm-up traffic and background rendering, s.
-    pub setup_s: f64,
-    /// Traffic, rendering, truth and detections for all frames, one thread, s.
-    pub render_s: f64,
-    /// Encoding all frames (one thread) in the configured format, s.
-    pub encode_s: f64,
-    /// Mean encoded frame size, bytes.
-    pub mean_frame_bytes: f64,
-}
-
-/// Runs `config` for `frames` frames on the calling thread and times each stage (nothing
-/// is written to disk).
-///
-/// # Errors
-/// An invalid configuration.
-pub fn benchmark(config: &SimConfig, seed: u64, frames: u32) -> Result<SimBenchmark> {
-    let cfg = SimConfig {
-        frames,
-        ..config.clone()
-    };
-    let t0 = Instant::now();
-    let mut sim = Simulation::new(&cfg, seed)?;
-    let setup_s = t0.elapsed().as_secs_f64();
-    let (mut render_s, mut encode_s, mut bytes) = (0.0, 0.0, 0usize);
-    loop {
-        let t = Instant::now();
-        let Some(step) = sim.next() else { break };
-        let step = step?;
-        render_s += t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        bytes += encode(&step, &cfg)?.len();
-        encode_s += t.elapsed().as_secs_f64();
-    }
-    Ok(SimBenchmark {
-        frames,
-        size: (cfg.width, cfg.height),
-        setup_s,
-        render_s,
-        encode_s,
-        mean_frame_bytes: bytes as f64 / f64::from(frames.max(1)),
-    })
 }

@@ -18,7 +18,6 @@ pub use roadtrack_core::{
 
 pub mod analysis;
 pub mod assignment;
-pub mod bench;
 pub mod detect;
 pub mod eval;
 pub mod likelihood;

@@ -2,9 +2,9 @@
 
 use crate::common::Ui;
 use anyhow::Result;
-use roadtrack::bench::{self, StageResult};
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::io::SourceOptions;
+use roadtrack_cli::bench::{self, StageResult};
 use std::path::PathBuf;
 
 /// Measure the throughput of each stage and print it with the machine's CPU and cores.
@@ -48,7 +48,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         bar.set_message("decode");
         results.push(bench::decode(&args.video, &SourceOptions::default())?);
     }
-    let generated = bench::moving_boxes(640, 480, args.frames, 12);
+    let generated = roadtrack_sim::testkit::moving_boxes(640, 480, args.frames, 12);
     if want("detect") {
         bar.set_message("detect");
         if have_video {
@@ -81,7 +81,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 view,
                 ..Default::default()
             };
-            let b = roadtrack_sim::benchmark(&cfg, 0, args.frames)?;
+            let b = bench::sim::benchmark(&cfg, 0, args.frames)?;
             let label = format!("{name} {}×{}", b.size.0, b.size.1);
             results.push(StageResult::new(
                 "sim-render",
@@ -118,7 +118,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if want("mrf") {
         bar.set_message("mrf");
         let cfg = roadtrack::track::mrf::MrfConfig::default();
-        let b = roadtrack::track::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
+        let b = bench::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
         results.push(StageResult::new(
             "mrf",
             "generated 640×480, 1 thread",
@@ -128,7 +128,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         ));
         if have_video {
             let (_, frames) = bench::load_frames(&args.video, 200)?;
-            let b = roadtrack::track::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
+            let b = bench::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
             results.push(StageResult::new(
                 "mrf",
                 "vtest.avi 768×576, 1 thread",
@@ -140,8 +140,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     }
     if want("filters") {
         bar.set_message("filters");
-        let reports =
-            roadtrack::track::filter::bench::bench_filters(&Default::default(), &mut |_, _| {})?;
+        let reports = bench::filters::bench_filters(&Default::default(), &mut |_, _| {})?;
         for r in reports {
             results.push(StageResult::new(
                 "filter",
@@ -163,8 +162,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         if ssd.is_none() {
             ui.info("note: SSD model absent (scripts/setup.sh --models); skipping the SSD rows");
         }
-        let cfg = roadtrack::track::filter::bench::FilterBenchConfig::default();
-        let (stages, phd) = roadtrack_cnn::bench::bench_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})?;
+        let cfg = bench::filters::FilterBenchConfig::default();
+        let (stages, phd) = bench::cnn::bench_cnn(&cfg, ssd.as_deref(), &mut |_, _| {})?;
         results.extend(stages);
         for r in phd {
             let stages = [

@@ -6,14 +6,12 @@
 //! - [`particle`]: the basic particle filter, `ρ` particles per object.
 //! - [`phd`]: the labelled SMC-PHD filter (steps a–f, eqs. 11–13), on images through a
 //!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
-//! - [`bench`](mod@bench): per-stage timings for `roadtrack bench`.
 //! - [`config`] and [`tracker`]: PF or PHD over a detector's output with the colour or a
 //!   network likelihood, as a [`crate::track::Tracker`] (`roadtrack track --method pf|phd`).
 //!
 //! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
 //! component, never one heap object per particle.
 
-pub mod bench;
 pub mod config;
 pub mod motion;
 pub mod particle;
@@ -32,6 +30,31 @@ pub use resample::ResamplingScheme;
 pub use tracker::{FilterTracker, FrameCount};
 
 use crate::geometry::Point;
+use std::time::Duration;
+
+/// Wall time spent in each stage, summed over steps.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilterStageTimes {
+    /// PHD steps b) and c): propagation and births.
+    pub predict: Duration,
+    /// Likelihood evaluation (`h` for every particle).
+    pub likelihood: Duration,
+    /// PHD step d): weight update, eqs. 11–13.
+    pub update: Duration,
+    /// PHD step e): label rules (particle filter: track start and end).
+    pub labels: Duration,
+    /// PHD step f): resampling and estimate extraction.
+    pub resample: Duration,
+    /// Number of steps summed.
+    pub steps: u64,
+}
+
+impl FilterStageTimes {
+    /// Total over stages.
+    pub fn total(&self) -> Duration {
+        self.predict + self.likelihood + self.update + self.labels + self.resample
+    }
+}
 
 /// Particles as a struct of arrays: state `(x, y, v_x, v_y)`, weight, label and the last
 /// likelihood `h(y | x)`, each in its own flat vector of equal length.

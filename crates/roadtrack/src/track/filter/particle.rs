@@ -7,8 +7,8 @@
 //! track; this one ends when its likelihood stays low or it leaves the image (see the
 //! `Choice:` notes).
 
+use super::FilterStageTimes;
 use super::motion::ConstantVelocity;
-use super::phd::FilterStageTimes;
 use super::resample::{ResamplingScheme, resample};
 use super::{Particles, SurveillanceRegion};
 use crate::class::ObjectClass;
@@ -385,9 +385,9 @@ impl ParticleFilterTracker {
 
 #[cfg(test)]
 mod tests {
-    use super::super::bench::{FilterBenchConfig, bench_scene};
     use super::*;
     use crate::likelihood::{BorderPolicy, ColourLikelihood, ColourLikelihoodConfig, Window};
+    use roadtrack_sim::testkit::{SquareSceneConfig, square_scene};
 
     fn colour_cfg() -> ColourLikelihoodConfig {
         ColourLikelihoodConfig {
@@ -398,7 +398,7 @@ mod tests {
     }
 
     fn scene() -> (Vec<Frame>, Vec<Detection>) {
-        bench_scene(&FilterBenchConfig {
+        square_scene(&SquareSceneConfig {
             width: 320,
             height: 240,
             targets: 3,

@@ -2,13 +2,13 @@
 
 use super::object_map::{NO_OBJECT, ObjectId, ObjectMap};
 use super::separation::{TruthRegion, occlusion_rows};
-use super::synthetic::{SynthObject, SynthScene};
 use super::{MrfConfig, MrfTracker, MrfVariant};
 use crate::detect::background_model::{BackgroundModel, bootstrap_from_frames};
 use crate::error::Result;
 use crate::eval::papers::separation_success;
 use crate::frame::Frame;
 use image::RgbImage;
+use roadtrack_sim::testkit::{RectTruth, SynthObject, SynthScene, SynthSequence};
 use std::collections::BTreeMap;
 
 /// Tracks `frames` with a background learnt from `empty` (the scene without objects: in a
@@ -40,6 +40,47 @@ pub(crate) fn run_with_background(
         maps.push(t.object_map().clone());
     }
     Ok(maps)
+}
+
+/// Frames `1..=n` of `seq` with the truth on the tracker's block grid: a block is visible for
+/// an object when at least half of its pixels show that object.
+fn block_truth(seq: &SynthSequence, n: u32) -> (Vec<Frame>, Vec<Vec<TruthRegion>>) {
+    let (frames, truth) = seq.frames(n);
+    (frames, truth.iter().map(block_regions).collect())
+}
+
+fn block_regions(t: &RectTruth) -> Vec<TruthRegion> {
+    use super::object_map::{BLOCK_PX, BlockGrid};
+    let grid = BlockGrid::for_frame(t.width, t.height);
+    let mut counts: std::collections::BTreeMap<u64, Vec<u32>> = t
+        .objects
+        .iter()
+        .map(|o| (o.id, vec![0u32; grid.len()]))
+        .collect();
+    for (p, id) in t.owner.iter().enumerate() {
+        let Some(c) = id.and_then(|id| counts.get_mut(&id)) else {
+            continue;
+        };
+        let (x, y) = ((p as u32) % t.width, (p as u32) / t.width);
+        if let Some((bx, by)) = grid.blocks_from_px(x, y) {
+            c[grid.index(bx, by)] += 1;
+        }
+    }
+    let half = BLOCK_PX * BLOCK_PX / 2;
+    t.objects
+        .iter()
+        .map(|o| TruthRegion {
+            id: o.id,
+            bbox: o.bbox,
+            visible_blocks: counts[&o.id]
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c >= half)
+                .map(|(i, _)| i)
+                .collect(),
+            occluded: o.occluded,
+        })
+        .collect()
 }
 
 /// The output id covering most of each truth object's visible blocks (None when none).
@@ -152,7 +193,7 @@ fn assert_two_ids_kept(
 fn crossing_objects_keep_distinct_ids_through_partial_occlusion() -> Result<()> {
     for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = crossing_scene().build(11);
-        let (frames, truth) = seq.frames(44);
+        let (frames, truth) = block_truth(&seq, 44);
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()
@@ -173,7 +214,7 @@ fn pedestrian_group_is_not_merged_when_visible_areas_are_at_least_ten_blocks() -
     // object's representative vector (`local_vector_tolerance_px`, `gibbs::proposals`).
     for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = side_by_side_scene().build(21);
-        let (frames, truth) = seq.frames(40);
+        let (frames, truth) = block_truth(&seq, 40);
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()
@@ -204,7 +245,7 @@ fn side_by_side_curves() -> Result<()> {
         (MrfVariant::Legacy, 0),
     ] {
         let seq = side_by_side_scene().build(21);
-        let (frames, truth) = seq.frames(40);
+        let (frames, truth) = block_truth(&seq, 40);
         let cfg = MrfConfig {
             variant,
             local_vector_tolerance_px: tol,
@@ -231,7 +272,7 @@ fn side_by_side_curves() -> Result<()> {
 fn converging_group_separation_curve() -> Result<()> {
     for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
         let seq = group_scene().build(21);
-        let (frames, truth) = seq.frames(60);
+        let (frames, truth) = block_truth(&seq, 60);
         let cfg = MrfConfig {
             variant,
             ..MrfConfig::default()
@@ -299,64 +340,6 @@ fn runs_on_vtest_avi_and_tracks_walking_people() -> Result<()> {
     let end: std::collections::BTreeSet<_> = ids_per_frame[59].iter().collect();
     let kept = mid.intersection(&end).count();
     assert!(kept >= 3, "ids at frame 30 {mid:?}, at 60 {end:?}");
-    Ok(())
-}
-
-/// Throughput figures for docs/PERFORMANCE.md "MRF" (run with `--ignored --nocapture`).
-#[test]
-#[ignore = "measurement, prints figures"]
-fn bench_numbers() -> Result<()> {
-    use super::block_matching::{gray_from_rgb, match_block_with};
-    use super::synthetic::SynthScene;
-    // 1. Kernel: scalar vs SSE2 on a 640×480 pair, 300 blocks, ±24 px.
-    let seq = SynthScene::moving_rectangles(640, 480, 12, 1).build(1);
-    let (a, b) = (
-        gray_from_rgb(&seq.frame(1).0.image),
-        gray_from_rgb(&seq.frame(2).0.image),
-    );
-    for simd in [false, true] {
-        let start = std::time::Instant::now();
-        let mut acc = 0u64;
-        for k in 0..300u32 {
-            let (bx, by) = (3 + k % 74, 3 + (k / 74) * 11 % 54);
-            let m = if simd {
-                match_block_with::<true>(&a, &b, bx, by, 24, [0, 0])
-            } else {
-                match_block_with::<false>(&a, &b, bx, by, 24, [0, 0])
-            };
-            acc += u64::from(m.sad);
-        }
-        let s = start.elapsed().as_secs_f64();
-        eprintln!(
-            "kernel simd={simd}: 300 blocks in {:.2} ms ({:.1} µs/block) [{acc}]",
-            s * 1e3,
-            s * 1e6 / 300.0
-        );
-    }
-    // 2. End to end, one thread.
-    for variant in [MrfVariant::Improved, MrfVariant::Legacy] {
-        let cfg = MrfConfig {
-            variant,
-            ..MrfConfig::default()
-        };
-        let (frames, _) = seq.frames(100);
-        let r = super::bench_mrf(&cfg, &frames, 1, 0)?;
-        eprintln!("synthetic 640x480 12 rectangles {variant:?}: {r:?}");
-        let path = std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/vtest.avi"
-        ));
-        if path.is_file() && crate::io::video::ffmpeg_available() {
-            let opts = crate::io::SourceOptions {
-                end: Some(200),
-                ..Default::default()
-            };
-            let frames: Vec<Frame> =
-                crate::io::source::open(path, &opts)?.collect::<Result<_>>()?;
-            let r = super::bench_mrf(&cfg, &frames, 1, 0)?;
-            eprintln!("vtest.avi 768x576 200 frames {variant:?}: {r:?}");
-        }
-    }
     Ok(())
 }
 

@@ -27,6 +27,7 @@ mod labelled;
 mod tests;
 mod tracker;
 
+pub use super::FilterStageTimes;
 pub use config::PhdConfig;
 pub use labelled::LabelledPhd;
 #[cfg(test)]
@@ -35,7 +36,6 @@ pub use tracker::PhdTracker;
 
 use crate::error::Result;
 use crate::geometry::Point;
-use std::time::Duration;
 
 /// A batch likelihood evaluation: `h` for each position into the output slice.
 pub type BatchEval<'a> = dyn FnMut(&[Point], &mut [f64]) -> Result<()> + 'a;
@@ -51,28 +51,4 @@ pub struct LabelEstimate {
     pub vel: Point,
     /// Sum of the label's weights (its expected count).
     pub weight: f64,
-}
-
-/// Wall time spent in each stage, summed over steps.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct FilterStageTimes {
-    /// b) and c): propagation and births.
-    pub predict: Duration,
-    /// Likelihood evaluation (`h` for every particle).
-    pub likelihood: Duration,
-    /// d): weight update, eqs. 11–13.
-    pub update: Duration,
-    /// e): label rules.
-    pub labels: Duration,
-    /// f): resampling and estimate extraction.
-    pub resample: Duration,
-    /// Number of steps summed.
-    pub steps: u64,
-}
-
-impl FilterStageTimes {
-    /// Total over stages.
-    pub fn total(&self) -> Duration {
-        self.predict + self.likelihood + self.update + self.labels + self.resample
-    }
 }

@@ -329,14 +329,14 @@ fn per_label_resampling_keeps_every_weight_and_gives_each_label_rho() -> Result<
 
 /// Coloured squares moving over a checkerboard.
 fn squares(n_frames: u32) -> (Vec<Frame>, Vec<Point>) {
-    let cfg = super::super::bench::FilterBenchConfig {
+    let cfg = roadtrack_sim::testkit::SquareSceneConfig {
         width: 320,
         height: 240,
         targets: 3,
         frames: n_frames,
         ..Default::default()
     };
-    let (frames, dets) = super::super::bench::bench_scene(&cfg);
+    let (frames, dets) = roadtrack_sim::testkit::square_scene(&cfg);
     (frames, dets.iter().map(|d| d.pos_px).collect())
 }
 

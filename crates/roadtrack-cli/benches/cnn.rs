@@ -1,7 +1,7 @@
 //! CNN throughput figures for docs/PERFORMANCE.md "CNN".
 //!
 //! ```text
-//! cargo run -p roadtrack --example cnn_bench            # dev profile (opt-level 1, deps 3)
+//! cargo bench -p roadtrack-cli --bench cnn
 //! ```
 //! Measures, on a 640×480 frame: per-window scoring (patches/s) and dense score maps
 //! (frames/s, with 700 particle lookups = 10 targets × 70 particles) for the network
@@ -9,30 +9,16 @@
 //! depend on the values) and the tiny test fixture; and the SSDLite pedestrian network when
 //! `scripts/setup.sh --models` has fetched it.
 
-use roadtrack::bench::machine;
 use roadtrack::rng::{Stream, rng};
-use roadtrack_cnn::bench::{
+use roadtrack_cli::bench::cnn::{
     bench_score_map, bench_ssd_score_map, bench_window_scoring, test_frame,
 };
+use roadtrack_cli::bench::{StageResult, cpu_seconds, machine};
 use roadtrack_cnn::export::write_onnx;
 use roadtrack_cnn::net::TinyCnn;
 use roadtrack_cnn::ssd::{SsdConfig, SsdPersonDetector, default_model_path};
 use roadtrack_cnn::train::{TrainConfig, training_preprocessing};
 use roadtrack_cnn::{CnnConfig, OnnxClassifier};
-
-/// CPU seconds (user + system) this process has used so far, from `/proc/self/stat`
-/// (Linux; clock ticks assumed 100/s). On a shared machine, items per CPU-second is the
-/// better estimate of quiet single-core throughput than items per wall-second.
-fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            let rest = s.rsplit_once(')')?.1;
-            let f: Vec<&str> = rest.split_whitespace().collect();
-            Some((f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) / 100.0)
-        })
-        .unwrap_or(f64::NAN)
-}
 
 fn main() -> roadtrack::Result<()> {
     let m = machine();
@@ -49,12 +35,12 @@ fn main() -> roadtrack::Result<()> {
     write_onnx(&person, &net, &training_preprocessing(), None)?;
     let fixture = std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/tests/fixtures/tiny_classifier.onnx"
+        "/../roadtrack-cnn/tests/fixtures/tiny_classifier.onnx"
     ));
     let mut rows = Vec::new();
     let mut cpu = Vec::new();
     let mut timed = |rows: &mut Vec<_>,
-                     f: &mut dyn FnMut() -> roadtrack::Result<roadtrack::bench::StageResult>|
+                     f: &mut dyn FnMut() -> roadtrack::Result<StageResult>|
      -> roadtrack::Result<()> {
         let c = cpu_seconds();
         let r = f()?;

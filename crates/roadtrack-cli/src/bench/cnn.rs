@@ -2,7 +2,7 @@
 //!
 //! The issue's budget (METHODS.md §3, issue 7): ≥ 30 frames/s at 640×480 with 10 targets ×
 //! 70 particles. Per-window scoring runs the network 700 times a frame; dense mode runs it
-//! once and looks 700 positions up in the [`ScoreMap`](super::ScoreMap).
+//! once and looks 700 positions up in the [`ScoreMap`](roadtrack_cnn::ScoreMap).
 //! [`bench_cnn`] ([`bench_cnn_stages`] and [`bench_phd_cnn`]) is what `roadtrack bench --stages cnn`
 //! runs: the network stages alone, and a whole PHD tracking step with a CNN likelihood,
 //! per stage.
@@ -14,18 +14,16 @@ use std::time::Instant;
 use image::RgbImage;
 use rand::RngExt as _;
 
-use super::export::write_onnx;
-use super::likelihood::{OnnxDense, SsdDense, dense_likelihood};
-use super::onnx::{CnnConfig, OnnxClassifier};
-use super::ssd::{SsdConfig, SsdPersonDetector};
-use super::train::{Patches, TrainConfig, train, training_preprocessing};
-use roadtrack::bench::StageResult;
+use super::StageResult;
+use super::filters::{FilterBenchConfig, StageReport, bench_phd_with};
 use roadtrack::error::{Error, Result};
 use roadtrack::geometry::{BBox, Point};
 use roadtrack::rng::{Stream, rng_for};
-use roadtrack::track::filter::bench::{
-    FilterBenchConfig, StageReport, bench_phd_with, bench_scene,
-};
+use roadtrack_cnn::export::write_onnx;
+use roadtrack_cnn::likelihood::{OnnxDense, SsdDense, dense_likelihood};
+use roadtrack_cnn::onnx::{CnnConfig, OnnxClassifier};
+use roadtrack_cnn::ssd::{SsdConfig, SsdPersonDetector};
+use roadtrack_cnn::train::{Patches, TrainConfig, train, training_preprocessing};
 
 /// A deterministic textured 640×480 frame (the papers' frame size).
 pub fn test_frame(width: u32, height: u32) -> RgbImage {
@@ -136,7 +134,7 @@ pub fn bench_ssd_score_map(
 }
 
 /// Trains the network `roadtrack train --preset person` writes (64×32 input) for a few
-/// epochs on the filter benchmark's scene ([`bench_scene`]): positives are 32×64 px windows
+/// epochs on the filter benchmark's scene ([`square_scene`](roadtrack_sim::testkit::square_scene)): positives are 32×64 px windows
 /// centred (±2 px) on the first frame's targets, negatives windows at least 30 px from
 /// every target. Writes it as ONNX to `path` (window scale 1: a 32×64 px window around
 /// the 24 px targets) and returns the test accuracy. A seeded few-second training, so the
@@ -145,7 +143,7 @@ pub fn bench_ssd_score_map(
 /// # Errors
 /// When training or writing fails.
 pub fn train_bench_classifier(cfg: &FilterBenchConfig, path: &Path) -> Result<f64> {
-    let (frames, detections) = bench_scene(cfg);
+    let (frames, detections) = roadtrack_sim::testkit::square_scene(&cfg.scene());
     let Some(first) = frames.first() else {
         return Err(Error::Invalid("benchmark scene without frames".into()));
     };
@@ -300,7 +298,7 @@ mod tests {
         assert!(acc >= 0.9, "test accuracy {acc}");
         let model = OnnxClassifier::load(&path, &CnnConfig::default())?;
         assert_eq!(model.window_size_px(), (32.0, 64.0));
-        let (frames, dets) = bench_scene(&cfg);
+        let (frames, dets) = roadtrack_sim::testkit::square_scene(&cfg.scene());
         let far = Point::new(5.0, 5.0);
         assert!(dets.iter().all(|d| d.pos_px.distance(far) > 40.0));
         let mut out = [0.0; 2];

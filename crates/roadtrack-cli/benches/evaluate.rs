@@ -3,7 +3,7 @@
 //! TrackEval's (DIR/expected.json). See docs/PERFORMANCE.md "Evaluation".
 //!
 //! ```sh
-//! cargo run -p roadtrack --example evaluate_bench -- DIR [REPS]
+//! cargo bench -p roadtrack-cli --bench evaluate -- DIR [REPS]
 //! ```
 
 use roadtrack::eval::{EvalConfig, evaluate};
@@ -12,8 +12,12 @@ use std::path::Path;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
-    let dir = Path::new(args.get(1).ok_or("usage: evaluate_bench DIR [REPS]")?);
+    // `cargo bench` appends `--bench`: flags are not ours.
+    let args: Vec<String> = std::env::args().filter(|a| !a.starts_with("--")).collect();
+    let dir = Path::new(
+        args.get(1)
+            .ok_or("usage: cargo bench -p roadtrack-cli --bench evaluate -- DIR [REPS]")?,
+    );
     let reps: usize = args.get(2).map_or(Ok(5), |s| s.parse())?;
     let expected: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("expected.json"))?)?;

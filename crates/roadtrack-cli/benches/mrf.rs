@@ -1,9 +1,9 @@
-//! Throughput of the MRF tracker (`mrf::bench_mrf`), frames decoded/rendered beforehand.
+//! Throughput of the MRF tracker (`roadtrack_cli::bench::mrf::bench_mrf`), frames decoded/rendered beforehand.
 //!
 //! ```text
-//! cargo run --release --example mrf_bench -- sim SCENE FRAMES [THREADS]   # 640×480 oblique
-//! cargo run --release --example mrf_bench -- video PATH FRAMES [THREADS]
-//! cargo run --release --example mrf_bench -- kernel   # block-matching paths, one thread
+//! cargo bench -p roadtrack-cli --bench mrf -- sim SCENE FRAMES [THREADS]   # 640×480 oblique
+//! cargo bench -p roadtrack-cli --bench mrf -- video PATH FRAMES [THREADS]
+//! cargo bench -p roadtrack-cli --bench mrf -- kernel   # block-matching paths, one thread
 //! ```
 //!
 //! Prints one line per variant (improved, legacy): frames/s by wall clock and per CPU
@@ -12,11 +12,17 @@
 
 use roadtrack::detect::background_model::{BackgroundModel, bootstrap_positions};
 use roadtrack::frame::Frame;
-use roadtrack::track::mrf::{MrfConfig, MrfVariant, bench_mrf};
+use roadtrack::track::mrf::{MrfConfig, MrfVariant};
+use roadtrack_cli::bench::cpu_seconds as process_cpu_s;
+use roadtrack_cli::bench::mrf::bench_mrf;
 use roadtrack_sim::{SimConfig, ViewKind, simulate_in_memory};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    // `cargo bench` appends `--bench`: flags are not ours.
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let kind = args.first().map_or("sim", String::as_str);
     let what = args.get(1).map_or("crossing", String::as_str);
     let n: u32 = args.get(2).map_or(Ok(200), |s| s.parse())?;
@@ -83,24 +89,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     Ok(())
-}
-
-/// User + system CPU time of this process, s (Linux `/proc/self/stat`; 0 elsewhere).
-fn process_cpu_s() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<f64> = rest
-        .split_whitespace()
-        .filter_map(|x| x.parse().ok())
-        .collect();
-    // rest starts at field 3 (state, not numeric, filtered out): utime = field 14 → f[10].
-    match (f.get(10), f.get(11)) {
-        (Some(u), Some(s)) => (u + s) / 100.0,
-        _ => 0.0,
-    }
 }
 
 /// CPU time per block of each block-matching path on one 640×480 pair of the simulated

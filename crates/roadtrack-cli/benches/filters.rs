@@ -2,13 +2,17 @@
 //! particle filter, 10 targets × 70 particles at 640 × 480 (docs/PERFORMANCE.md "Filters").
 //!
 //! ```text
-//! cargo run -p roadtrack --example filters_bench [-- FRAMES [STRIDE_PX]]
+//! cargo bench -p roadtrack-cli --bench filters [-- FRAMES [STRIDE_PX]]
 //! ```
 
-use roadtrack::track::filter::bench::{FilterBenchConfig, bench_filters};
+use roadtrack_cli::bench::filters::{FilterBenchConfig, bench_filters};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    // `cargo bench` appends `--bench`: flags are not ours.
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let mut cfg = FilterBenchConfig::default();
     if let Some(f) = args.first() {
         cfg.frames = f.parse()?;

@@ -1,13 +1,18 @@
-//! Throughput measurements behind `roadtrack bench`.
+//! Throughput measurements behind `roadtrack bench` and the benchmarks in `benches/`.
 //!
 //! Each stage runs on a named input and reports frames (or items) per second of wall time.
 //! Timings are measurements, never test assertions.
 
-use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
-use crate::error::Result;
-use crate::frame::Frame;
-use crate::io::{SourceOptions, source};
-use image::{Rgb, RgbImage};
+#[cfg(feature = "cnn")]
+pub mod cnn;
+pub mod filters;
+pub mod mrf;
+pub mod sim;
+
+use roadtrack::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
+use roadtrack::error::Result;
+use roadtrack::frame::Frame;
+use roadtrack::io::{SourceOptions, source};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -149,49 +154,28 @@ fn input_label(path: &Path, w: u32, h: u32) -> String {
     format!("{name} {w}×{h}")
 }
 
-/// A generated sequence: `n_objects` coloured rectangles moving at constant velocity over
-/// a textured static background, `width × height` px. Deterministic (no randomness).
-pub fn moving_boxes(width: u32, height: u32, n_frames: u32, n_objects: u32) -> Vec<Frame> {
-    let background = RgbImage::from_fn(width, height, |x, y| {
-        let v = 95 + ((x * 7 + y * 13) % 17) as u8;
-        Rgb([v, v, v.saturating_add(3)])
-    });
-    (1..=n_frames)
-        .map(|i| {
-            let mut img = background.clone();
-            for k in 0..n_objects {
-                let (bw, bh) = (24 + 4 * (k % 5), 14 + 3 * (k % 4));
-                let speed = 2 + (k % 6) as i64;
-                let dir = if k % 2 == 0 { 1 } else { -1 };
-                let lane_y = (20 + (k * 37) % (height.saturating_sub(bh + 40)).max(1)) as i64;
-                let span = i64::from(width + bw);
-                let x0 = (i64::from(k * 53) + dir * speed * i64::from(i)).rem_euclid(span)
-                    - i64::from(bw);
-                let colour = Rgb([
-                    (40 + k * 67 % 200) as u8,
-                    (30 + k * 101 % 210) as u8,
-                    (50 + k * 29 % 190) as u8,
-                ]);
-                for y in lane_y..lane_y + i64::from(bh) {
-                    for x in x0..x0 + i64::from(bw) {
-                        if x >= 0 && y >= 0 && x < i64::from(width) && y < i64::from(height) {
-                            img.put_pixel(x as u32, y as u32, colour);
-                        }
-                    }
-                }
-            }
-            Frame {
-                index: i,
-                time_s: f64::from(i - 1) / 10.0,
-                image: img,
-            }
-        })
-        .collect()
+/// CPU seconds (user + system) this process has used so far, from `/proc/self/stat`
+/// (Linux, 100 clock ticks a second; 0 elsewhere). On a shared machine, items per CPU
+/// second estimate quiet single-core throughput better than items per wall second.
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesised command name: state (field 3) onwards; utime and
+    // stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let field = |n: usize| f.get(n - 3).and_then(|x| x.parse::<f64>().ok());
+    match (field(14), field(15)) {
+        (Some(u), Some(s)) => (u + s) / 100.0,
+        _ => 0.0,
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use roadtrack_sim::testkit::moving_boxes;
 
     #[test]
     fn generated_sequence_has_the_objects_the_detector_finds() -> Result<()> {

@@ -1,14 +1,36 @@
-//! A small seeded generator of moving textured rectangles over a textured background, with
-//! a known depth order and per-frame visibility truth — for the MRF tracker's tests and
-//! benchmark until the full simulator (`sim`) is available.
+//! Moving textured rectangles over a textured background with a known depth order and
+//! per-pixel truth: the MRF tracker's occlusion scenarios and benchmark scene.
 
-use super::object_map::{BLOCK_PX, BlockGrid};
-use super::separation::TruthRegion;
-use crate::frame::Frame;
-use crate::geometry::BBox;
-use crate::rng::{Stream, rng_for};
 use image::RgbImage;
 use rand::RngExt as _;
+use roadtrack_core::frame::Frame;
+use roadtrack_core::geometry::BBox;
+use roadtrack_core::rng::{Stream, rng_for};
+use std::collections::BTreeMap;
+
+/// The truth of one frame of a [`SynthSequence`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RectTruth {
+    /// Frame width, px.
+    pub width: u32,
+    /// Frame height, px.
+    pub height: u32,
+    /// The id of the object each pixel shows (row-major), `None` for background.
+    pub owner: Vec<Option<u64>>,
+    /// Every object at least partly inside the frame, in the scene's order.
+    pub objects: Vec<RectObjectTruth>,
+}
+
+/// One object of a [`RectTruth`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RectObjectTruth {
+    /// Truth id.
+    pub id: u64,
+    /// Its whole box (may extend past the frame), px.
+    pub bbox: BBox,
+    /// Whether another object hides some of its in-frame pixels.
+    pub occluded: bool,
+}
 
 /// One rectangle.
 #[derive(Debug, Clone, PartialEq)]
@@ -60,7 +82,8 @@ impl SynthScene {
             .map(|i| {
                 let w = r.random_range(24..=80u32);
                 let h = r.random_range(16..=48u32);
-                let sign = |r: &mut crate::rng::Rng| if r.random::<bool>() { 1.0 } else { -1.0 };
+                let sign =
+                    |r: &mut roadtrack_core::rng::Rng| if r.random::<bool>() { 1.0 } else { -1.0 };
                 SynthObject {
                     id: u64::from(i) + 1,
                     left_px: r.random_range(0.0..f64::from(width.saturating_sub(w).max(1))),
@@ -121,6 +144,11 @@ impl SynthSequence {
         &self.scene
     }
 
+    /// The object textures, in the scene's order.
+    pub fn textures(&self) -> &[RgbImage] {
+        &self.textures
+    }
+
     /// Left and top of object `k` at frame `index` (1-based), whole px.
     fn position(&self, k: usize, index: u32) -> (i64, i64) {
         let o = &self.scene.objects[k];
@@ -131,13 +159,12 @@ impl SynthSequence {
         )
     }
 
-    /// Frame `index` (1-based, 10 frames/s) and the truth of every object at least partly
-    /// inside it. A block counts as visible for an object when at least half of its pixels
-    /// show that object.
-    pub fn frame(&self, index: u32) -> (Frame, Vec<TruthRegion>) {
+    /// Frame `index` (1-based, 10 frames/s) and its truth: which object each pixel shows
+    /// and every object at least partly inside the frame.
+    pub fn frame(&self, index: u32) -> (Frame, RectTruth) {
         let (w, h) = (self.scene.width, self.scene.height);
         let mut img = self.background.clone();
-        let mut owner = vec![usize::MAX; (w * h) as usize];
+        let mut owner = vec![None; (w * h) as usize];
         let mut order: Vec<usize> = (0..self.scene.objects.len()).collect();
         order.sort_by_key(|&k| std::cmp::Reverse(self.scene.objects[k].depth));
         for &k in &order {
@@ -154,7 +181,7 @@ impl SynthSequence {
                         continue;
                     }
                     img.put_pixel(x as u32, y as u32, *tex.get_pixel(tx, ty));
-                    owner[(y as u32 * w + x as u32) as usize] = k;
+                    owner[(y as u32 * w + x as u32) as usize] = Some(self.scene.objects[k].id);
                 }
             }
         }
@@ -165,21 +192,11 @@ impl SynthSequence {
                 *p = (i16::from(*p) + r.random_range(-a..=a)).clamp(0, 255) as u8;
             }
         }
-        let grid = BlockGrid::for_frame(w, h);
-        let mut counts = vec![vec![0u32; grid.len()]; self.scene.objects.len()];
-        let mut visible_px = vec![0u64; self.scene.objects.len()];
-        for (p, &k) in owner.iter().enumerate() {
-            if k == usize::MAX {
-                continue;
-            }
-            visible_px[k] += 1;
-            let (x, y) = ((p as u32) % w, (p as u32) / w);
-            if let Some((bx, by)) = grid.blocks_from_px(x, y) {
-                counts[k][grid.index(bx, by)] += 1;
-            }
+        let mut visible_px: BTreeMap<u64, u64> = BTreeMap::new();
+        for id in owner.iter().flatten() {
+            *visible_px.entry(*id).or_insert(0) += 1;
         }
-        let half = BLOCK_PX * BLOCK_PX / 2;
-        let truth = (0..self.scene.objects.len())
+        let objects = (0..self.scene.objects.len())
             .filter_map(|k| {
                 let o = &self.scene.objects[k];
                 let (x0, y0) = self.position(k, index);
@@ -189,7 +206,7 @@ impl SynthSequence {
                     return None;
                 }
                 let in_frame = (inside_w * inside_h) as u64;
-                Some(TruthRegion {
+                Some(RectObjectTruth {
                     id: o.id,
                     bbox: BBox::new(
                         x0 as f64,
@@ -197,13 +214,7 @@ impl SynthSequence {
                         f64::from(o.width_px),
                         f64::from(o.height_px),
                     ),
-                    visible_blocks: counts[k]
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, c)| **c >= half)
-                        .map(|(i, _)| i)
-                        .collect(),
-                    occluded: visible_px[k] < in_frame,
+                    occluded: visible_px.get(&o.id).copied().unwrap_or(0) < in_frame,
                 })
             })
             .collect();
@@ -213,7 +224,12 @@ impl SynthSequence {
                 time_s: f64::from(index - 1) / 10.0,
                 image: img,
             },
-            truth,
+            RectTruth {
+                width: w,
+                height: h,
+                owner,
+                objects,
+            },
         )
     }
 
@@ -232,7 +248,7 @@ impl SynthSequence {
     }
 
     /// Frames `1..=n` with their truth.
-    pub fn frames(&self, n: u32) -> (Vec<Frame>, Vec<Vec<TruthRegion>>) {
+    pub fn frames(&self, n: u32) -> (Vec<Frame>, Vec<RectTruth>) {
         (1..=n).map(|i| self.frame(i)).unzip()
     }
 }
@@ -243,42 +259,33 @@ mod tests {
 
     #[test]
     fn front_object_hides_the_back_one_and_truth_says_so() {
+        let obj = |id, left_px, velocity_px_per_frame, depth| SynthObject {
+            id,
+            left_px,
+            top_px: 16.0,
+            width_px: 32,
+            height_px: 32,
+            velocity_px_per_frame,
+            depth,
+        };
         let scene = SynthScene {
             width: 128,
             height: 64,
-            objects: vec![
-                SynthObject {
-                    id: 1,
-                    left_px: 16.0,
-                    top_px: 16.0,
-                    width_px: 32,
-                    height_px: 32,
-                    velocity_px_per_frame: (8.0, 0.0),
-                    depth: 0,
-                },
-                SynthObject {
-                    id: 2,
-                    left_px: 40.0,
-                    top_px: 16.0,
-                    width_px: 32,
-                    height_px: 32,
-                    velocity_px_per_frame: (0.0, 0.0),
-                    depth: 1,
-                },
-            ],
+            objects: vec![obj(1, 16.0, (8.0, 0.0), 0), obj(2, 40.0, (0.0, 0.0), 1)],
             noise: 0,
         };
         let seq = scene.build(1);
         let (f1, t1) = seq.frame(1);
-        // Frame 1: object 1 covers x 16..48, object 2 x 40..72 behind it: 2 visible from 48.
-        assert_eq!(t1[0].visible_blocks.len(), 16);
-        assert!(!t1[0].occluded && t1[1].occluded);
+        // Frame 1: object 1 covers x 16..48, object 2 x 40..72 behind it: 2 shows from 48.
+        let shown = |id| t1.owner.iter().filter(|o| **o == Some(id)).count();
+        assert_eq!(shown(1), 32 * 32);
+        assert_eq!(shown(2), 24 * 32);
+        assert!(!t1.objects[0].occluded && t1.objects[1].occluded);
+        assert_eq!(t1.owner[20 * 128 + 44], Some(1));
         assert_eq!(
-            t1[1].visible_blocks.len(),
-            12,
-            "x 48..72 = 3 block columns × 4 rows"
+            f1.image.get_pixel(44, 20),
+            seq.textures()[0].get_pixel(28, 4)
         );
-        assert_eq!(f1.image.get_pixel(44, 20), seq.textures[0].get_pixel(28, 4));
         // Same seed → same pixels.
         assert_eq!(scene.build(1).frame(3).0.image, seq.frame(3).0.image);
     }

@@ -3,19 +3,17 @@
 //! textured `width × height` background, tracked by the PHD filter (colour likelihood per
 //! particle, and in dense mode) and the basic particle filter.
 
-use super::particle::{ParticleFilterConfig, ParticleFilterTracker};
-use super::phd::{FilterStageTimes, PhdConfig, PhdTracker};
-use crate::detection::Detection;
-use crate::error::Result;
-use crate::frame::Frame;
-use crate::geometry::{BBox, Point};
-use crate::likelihood::{
+use roadtrack::detection::Detection;
+use roadtrack::error::Result;
+use roadtrack::frame::Frame;
+use roadtrack::geometry::BBox;
+use roadtrack::likelihood::{
     BorderPolicy, ColourLikelihood, ColourLikelihoodConfig, DenseLikelihood, GridScorer,
     Likelihood, Window,
 };
-use crate::rng::{Stream, rng_for};
-use image::{Rgb, RgbImage};
-use rand::RngExt as _;
+use roadtrack::track::filter::particle::{ParticleFilterConfig, ParticleFilterTracker};
+use roadtrack::track::filter::phd::{FilterStageTimes, PhdConfig, PhdTracker};
+use roadtrack_sim::testkit::{SquareSceneConfig, square_scene};
 use serde::Serialize;
 
 /// Size of the benchmark.
@@ -100,56 +98,17 @@ impl StageReport {
     }
 }
 
-/// The synthetic scene: frames and the first frame's detections.
-pub fn bench_scene(cfg: &FilterBenchConfig) -> (Vec<Frame>, Vec<Detection>) {
-    let mut rng = rng_for(cfg.seed, Stream::Synthetic, 0xBE7C);
-    let (w, h) = (cfg.width, cfg.height);
-    let background = RgbImage::from_fn(w, h, |x, y| {
-        let v = 70 + ((x / 16 + y / 16) % 2) as u8 * 30;
-        Rgb([v, v + 10, v])
-    });
-    let size = 24.0;
-    let targets: Vec<(Point, Point, Rgb<u8>)> = (0..cfg.targets)
-        .map(|k| {
-            // One colour class (as one CNN class would be).
-            let pos = Point::new(
-                40.0 + rng.random::<f64>() * (f64::from(w) - 80.0),
-                40.0 + rng.random::<f64>() * (f64::from(h) - 80.0),
-            );
-            let vel = Point::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
-            let _ = k;
-            let colour = Rgb([200, 40, 40]);
-            (pos, vel, colour)
-        })
-        .collect();
-    let frames = (1..=cfg.frames)
-        .map(|index| {
-            let t = f64::from(index - 1);
-            let mut img = background.clone();
-            for (p, v, c) in &targets {
-                let b = BBox::from_centre(Point::new(p.x + v.x * t, p.y + v.y * t), size, size);
-                for y in b.top.max(0.0) as u32..(b.bottom().min(f64::from(h))) as u32 {
-                    for x in b.left.max(0.0) as u32..(b.right().min(f64::from(w))) as u32 {
-                        img.put_pixel(x, y, *c);
-                    }
-                }
-            }
-            Frame {
-                index,
-                time_s: t / 10.0,
-                image: img,
-            }
-        })
-        .collect();
-    let detections = targets
-        .iter()
-        .enumerate()
-        .map(|(k, (p, _, _))| Detection {
-            size_px: Some((size, size)),
-            ..Detection::at(1, k as u64 + 1, *p)
-        })
-        .collect();
-    (frames, detections)
+impl FilterBenchConfig {
+    /// The scene part.
+    pub fn scene(&self) -> SquareSceneConfig {
+        SquareSceneConfig {
+            width: self.width,
+            height: self.height,
+            targets: self.targets,
+            frames: self.frames,
+            seed: self.seed,
+        }
+    }
 }
 
 /// The PHD filter with `likelihood` on `frames`, started from `detections` (ρ =
@@ -174,7 +133,7 @@ fn run_phd(
     Ok(StageReport::new(name, &t.stage_times(), n))
 }
 
-/// Runs the PHD filter with `likelihood` on the synthetic scene ([`bench_scene`]) and
+/// Runs the PHD filter with `likelihood` on the synthetic scene ([`square_scene`]) and
 /// reports per-stage times (a whole tracking step: predict, likelihood — for dense
 /// likelihoods the per-frame score map plus lookups — update, labels, resample).
 ///
@@ -185,7 +144,7 @@ pub fn bench_phd_with(
     name: &str,
     likelihood: Box<dyn Likelihood>,
 ) -> Result<StageReport> {
-    let (frames, detections) = bench_scene(cfg);
+    let (frames, detections) = square_scene(&cfg.scene());
     run_phd(cfg, &frames, &detections, name, likelihood)
 }
 
@@ -198,7 +157,7 @@ pub fn bench_filters(
     cfg: &FilterBenchConfig,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<StageReport>> {
-    let (frames, detections) = bench_scene(cfg);
+    let (frames, detections) = square_scene(&cfg.scene());
     let Some(first) = frames.first() else {
         return Ok(Vec::new());
     };

@@ -1,0 +1,47 @@
+//! Helpers every command-line test shares (`mod common;` in each test file).
+#![allow(dead_code)] // each test binary uses some of them
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The `roadtrack` binary under test.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_roadtrack"))
+}
+
+/// A committed fixture of the library crate (`crates/roadtrack/tests/fixtures/REL`).
+pub fn fixture(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../roadtrack/tests/fixtures")
+        .join(rel)
+}
+
+/// Standard error, lossily decoded.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Standard output, lossily decoded.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The sorted names in `dir`.
+pub fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .expect("read_dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// `../shared/data/vtest.avi` when it and ffmpeg are present (a note on stderr otherwise).
+pub fn vtest() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/vtest.avi");
+    let ok = p.is_file() && roadtrack::io::video::ffmpeg_available();
+    if !ok {
+        eprintln!("note: skipping, needs ffmpeg and ../shared/data/vtest.avi");
+    }
+    ok.then_some(p)
+}
