@@ -154,6 +154,42 @@ fn input_label(path: &Path, w: u32, h: u32) -> String {
     format!("{name} {w}×{h}")
 }
 
+/// The whole pipeline of `roadtrack track` (decode, detect, track, write MOT tracks) for
+/// each method with its defaults, on the MOT sequence folder `seq`: frames per second of
+/// wall time, as a user sees it.
+///
+/// # Errors
+/// The sequence cannot be read or a method fails.
+pub fn pipeline(seq: &Path, label: &str, seed: u64) -> Result<Vec<StageResult>> {
+    use roadtrack::track::pipeline::MotSink;
+    use roadtrack::track::{Method, MethodConfig, PointSink, track_source};
+    let out = tempfile::tempdir().map_err(|e| roadtrack::Error::io("temporary folder", e))?;
+    Method::ALL
+        .iter()
+        .map(|&method| {
+            let path = out.path().join(format!("{}.txt", method.name()));
+            let sink: Box<dyn PointSink> = Box::new(MotSink::create(&path)?);
+            let start = Instant::now();
+            let summary = track_source(
+                seq,
+                &SourceOptions::default(),
+                MethodConfig::defaults(method, seed),
+                None,
+                Vec::new(),
+                vec![sink],
+                &mut |_, _| {},
+            )?;
+            Ok(StageResult::new(
+                &format!("pipeline {}", method.name()),
+                label,
+                summary.frames,
+                "frames",
+                start.elapsed().as_secs_f64(),
+            ))
+        })
+        .collect()
+}
+
 /// CPU seconds (user + system) this process has used so far, from `/proc/self/stat`
 /// (Linux, 100 clock ticks a second; 0 elsewhere). On a shared machine, items per CPU
 /// second estimate quiet single-core throughput better than items per wall second.

@@ -22,7 +22,8 @@ pub struct Args {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
-    /// Stages to run (default all): decode, detect, simulate, relaxation, mrf, filters, cnn
+    /// Stages to run (default all): decode, detect, simulate, pipeline (decode, detect,
+    /// track and write with each method's defaults), relaxation, mrf, filters, cnn
     /// (network scoring per window and dense, and a PHD tracking step with a CNN
     /// likelihood per stage; the SSD rows when scripts/setup.sh --models has run).
     #[arg(long, value_delimiter = ',')]
@@ -98,6 +99,26 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 b.encode_s,
             ));
         }
+    }
+    if want("pipeline") {
+        // Decode + detect + track + write, per method, on a simulated intersection.
+        use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+        bar.set_message("pipeline: simulating");
+        let dir = tempfile::tempdir()?;
+        let seq = dir.path().join("seq");
+        let cfg = SimConfig {
+            scene: SceneKind::Intersection,
+            view: ViewKind::Oblique,
+            frames: args.frames,
+            ..SimConfig::default()
+        };
+        roadtrack_sim::simulate(&cfg, 1, &seq, &mut |_, _| {})?;
+        bar.set_message("pipeline");
+        results.extend(bench::pipeline(
+            &seq,
+            &format!("intersection oblique 640×480, {} frames", args.frames),
+            0,
+        )?);
     }
     if want("relaxation") {
         for n in [50usize, 1_000, 10_000, 100_000]
