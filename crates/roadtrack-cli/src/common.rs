@@ -99,6 +99,37 @@ pub enum DetectorArg {
     File,
 }
 
+/// The shared track life cycle after the method (`track`; docs/TRACKING.md).
+#[derive(Debug, Clone, clap::Args)]
+pub struct LifecycleArgs {
+    /// Write a track only once it has been seen in N frames (1: every track).
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    pub confirm_hits: u32,
+    /// Fill gaps of up to N frames in a track with interpolated boxes (0: none).
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub coast_frames: u32,
+    /// The method's output as published: no confirmation, coasting, box smoothing or
+    /// per-track class (overrides --confirm-hits and --coast-frames), and relaxation
+    /// without its second assignment.
+    #[arg(long)]
+    pub as_published: bool,
+}
+
+impl LifecycleArgs {
+    /// The stage's configuration.
+    pub fn config(&self) -> roadtrack::track::confirm::LifecycleConfig {
+        use roadtrack::track::confirm::LifecycleConfig;
+        if self.as_published {
+            return LifecycleConfig::off();
+        }
+        LifecycleConfig {
+            confirm_hits: self.confirm_hits,
+            max_coast_frames: self.coast_frames,
+            ..LifecycleConfig::default()
+        }
+    }
+}
+
 /// Which detector finds the objects (`detect`, `track`, `render`, `demo`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct DetectorArgs {

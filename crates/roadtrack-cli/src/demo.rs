@@ -9,6 +9,7 @@ use roadtrack::calibration::Calibration;
 use roadtrack::error::{Error, Result};
 use roadtrack::eval::{self, ClassMode, EvalConfig};
 use roadtrack::io::{self, SourceOptions, mot, sink, source};
+use roadtrack::track::confirm::{LifecycleConfig, LifecycleStage};
 use roadtrack::track::pipeline::{MotSink, TrajectoriesSink};
 use roadtrack::track::replay::ReplayTracker;
 use roadtrack::track::{Method, MethodConfig, Pipeline, track_source};
@@ -168,7 +169,10 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
             &SourceOptions::default(),
             MethodConfig::defaults(method, cfg.seed),
             None,
-            vec![Box::new(GroundStage::new(&calibration, None, 0.5)?)],
+            vec![
+                Box::new(LifecycleStage::new(LifecycleConfig::default())?),
+                Box::new(GroundStage::new(&calibration, None, 0.5)?),
+            ],
             vec![
                 Box::new(MotSink::create(&mdir.join("tracks.txt"))?),
                 Box::new(TrajectoriesSink::create(

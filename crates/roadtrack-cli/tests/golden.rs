@@ -127,7 +127,8 @@ fn check(case: &str, texts: &[(&str, PathBuf)], binary: &BTreeMap<String, u64>) 
 const METHODS: [&str; 4] = ["relaxation", "mrf", "pf", "phd"];
 
 /// The demo's sequence (intersection, oblique, 150 frames, seed 0) tracked by every method
-/// with its calibration: MOT tracks, trajectories CSV with metres and speeds, GeoJSON.
+/// as published with its calibration (MOT tracks, trajectories CSV with metres and speeds,
+/// GeoJSON), and with the default life cycle (MOT tracks).
 #[test]
 fn every_method_on_the_demo_sequence_is_unchanged() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -162,6 +163,7 @@ fn every_method_on_the_demo_sequence_is_unchanged() {
                 "seq",
                 "--method",
                 m,
+                "--as-published",
                 "--seed",
                 "0",
                 "--calibration",
@@ -174,7 +176,11 @@ fn every_method_on_the_demo_sequence_is_unchanged() {
                 &g,
             ],
         );
-        for f in [t, c, g] {
+        // The default: the method with the shared life cycle (and relaxation's second
+        // assignment).
+        let l = format!("{m}_lifecycle.txt");
+        run(d, &["track", "seq", "--method", m, "--seed", "0", "-o", &l]);
+        for f in [t, c, g, l] {
             let p = d.join(&f);
             texts.push((f, p));
         }
@@ -197,7 +203,20 @@ fn every_method_on_the_tiny_fixture_is_unchanged() {
     run(d, &["detect", seq, "-o", "detections.csv"]);
     for m in METHODS {
         let t = format!("{m}.txt");
-        run(d, &["track", seq, "--method", m, "--seed", "3", "-o", &t]);
+        run(
+            d,
+            &[
+                "track",
+                seq,
+                "--method",
+                m,
+                "--as-published",
+                "--seed",
+                "3",
+                "-o",
+                &t,
+            ],
+        );
         names.push(t);
     }
     run(
@@ -207,6 +226,7 @@ fn every_method_on_the_tiny_fixture_is_unchanged() {
             seq,
             "--method",
             "mrf",
+            "--as-published",
             "-o",
             "mrf_maps.txt",
             "--object-maps",
@@ -232,6 +252,7 @@ fn every_method_on_the_tiny_fixture_is_unchanged() {
                     "cnn",
                     "--model",
                     model,
+                    "--as-published",
                     "-o",
                     &t,
                 ],

@@ -154,7 +154,7 @@ fn input_label(path: &Path, w: u32, h: u32) -> String {
     format!("{name} {w}×{h}")
 }
 
-/// The whole pipeline of `roadtrack track` (decode, detect, track, write MOT tracks) for
+/// The whole pipeline of `roadtrack track` (decode, detect, track, life cycle, write MOT tracks) for
 /// each method with its defaults, on the MOT sequence folder `seq`: frames per second of
 /// wall time, as a user sees it.
 ///
@@ -170,12 +170,13 @@ pub fn pipeline(seq: &Path, label: &str, seed: u64) -> Result<Vec<StageResult>> 
             let path = out.path().join(format!("{}.txt", method.name()));
             let sink: Box<dyn PointSink> = Box::new(MotSink::create(&path)?);
             let start = Instant::now();
+            let lifecycle = roadtrack::track::confirm::LifecycleStage::new(Default::default())?;
             let summary = track_source(
                 seq,
                 &SourceOptions::default(),
                 MethodConfig::defaults(method, seed),
                 None,
-                Vec::new(),
+                vec![Box::new(lifecycle)],
                 vec![sink],
                 &mut |_, _| {},
             )?;

@@ -1,6 +1,6 @@
 //! `roadtrack track`: run a tracking method over a video, image folder or MOT sequence.
 
-use crate::common::{DetectorArgs, FrameArgs, Ui, load_config};
+use crate::common::{DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config};
 use anyhow::{Context, Result};
 use roadtrack::analysis::ground::GroundStage;
 use roadtrack::analysis::kinematics::GroundPoint;
@@ -9,11 +9,13 @@ use roadtrack::detect::FrameDetections;
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::frame::Frame;
 use roadtrack::io::source;
+use roadtrack::track::confirm::LifecycleStage;
 use roadtrack::track::filter::{FilterMethod, FilterTrackConfig};
 use roadtrack::track::method::BuiltTracker;
 use roadtrack::track::mrf::object_map::BLOCK_PX;
 use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
 use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
+use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
@@ -105,6 +107,8 @@ pub struct Args {
     #[command(flatten)]
     pub detector: DetectorArgs,
     #[command(flatten)]
+    pub lifecycle: LifecycleArgs,
+    #[command(flatten)]
     pub frames: FrameArgs,
 }
 
@@ -131,7 +135,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     };
     let method = match args.method {
         Method::Relaxation => {
-            let mut tracker: RelaxationTrackerConfig = load_config(args.config.as_deref())?;
+            let mut tracker = relaxation_config(args.config.as_deref())?;
+            if args.lifecycle.as_published {
+                // The paper's two-frame decisions chained, nothing re-paired.
+                tracker.rematch = false;
+            }
             if let Some(k) = args.max_missed_frames {
                 tracker.max_missed_frames = k;
             }
@@ -189,6 +197,10 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         (t, _) => t.boxed(),
     };
     let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
+    let lifecycle = args.lifecycle.config();
+    if !lifecycle.is_off() {
+        stages.push(Box::new(LifecycleStage::new(lifecycle)?));
+    }
     if let Some(cal) = &calibration {
         stages.push(Box::new(
             GroundStage::new(cal, args.ground_point, args.smooth_s)
@@ -293,5 +305,25 @@ fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Lik
                 "ssd"
             }
         ),
+    }
+}
+
+/// `--config` for relaxation: a tracker config (`RelaxationTrackerConfig`, matcher under
+/// `[relaxation]`) or a bare matcher config (`RelaxationConfig`, as `match --config` takes,
+/// e.g. configs/relaxation-intersection.toml) with the tracker's defaults.
+fn relaxation_config(path: Option<&std::path::Path>) -> Result<RelaxationTrackerConfig> {
+    let Some(p) = path else {
+        return Ok(RelaxationTrackerConfig::default());
+    };
+    match roadtrack::config::load_toml::<RelaxationTrackerConfig>(p) {
+        Ok(c) => Ok(c),
+        Err(as_tracker) => match roadtrack::config::load_toml::<RelaxationConfig>(p) {
+            Ok(relaxation) => Ok(RelaxationTrackerConfig {
+                relaxation,
+                ..RelaxationTrackerConfig::default()
+            }),
+            // Report the tracker form's error: it names the file, line and field.
+            Err(_) => Err(anyhow::Error::new(as_tracker).context("reading --config")),
+        },
     }
 }

@@ -7,8 +7,10 @@
 //!
 //! Methods (METHODS.md): [`relaxation`] (seed 000), [`mrf`] (seed 002), [`filter`] (PF and
 //! labelled SMC-PHD, seed 004). [`method`] is the one place that turns a [`Method`] and its
-//! config into a detector and a tracker.
+//! config into a detector and a tracker. [`confirm`] is the life cycle every method shares
+//! (confirmation, coasting, box smoothing, a class per track) as a point stage.
 
+pub mod confirm;
 pub mod filter;
 pub mod lifecycle;
 pub mod method;

@@ -11,6 +11,11 @@
 //!   id when it is matched again; after that it ends.
 //! - Choice: when the argmax sends two tracks to one detection, the detection goes to the
 //!   more probable claim (ties: the older track) and the other track counts as missed.
+//! - Choice: tracks and detections the relaxation left unpaired (most often an isolated
+//!   vehicle whose real labels lost to the no-match label, see the note below) are paired
+//!   by a second, gated minimum-distance assignment between each live track's predicted
+//!   position in this frame and the detections ([`RelaxationTrackerConfig::rematch`]; the
+//!   cascade of SORT-style trackers). Off, every unpaired detection starts a track.
 //! - Choice: a detection no track claimed starts a new track; ids count up from 1.
 //!
 //! Note: with the paper's `A = 0.5`, a vehicle without neighbours within `R` loses its real
@@ -38,6 +43,16 @@ pub struct RelaxationTrackerConfig {
     /// Side of the box written for detections without a size, px. Default 15 (a car at
     /// 0.3 m/px; paper silent).
     pub fallback_box_px: f64,
+    /// Whether tracks and detections the relaxation left unpaired get a second, gated
+    /// nearest assignment. Default true (the tracker is ours; `false` chains the paper's
+    /// two-frame decisions only).
+    pub rematch: bool,
+    /// Gate of the second assignment: a detection may take a track predicted within
+    /// `max(rematch_gate_px, rematch_box_fraction × the detection box's longer side)`.
+    /// Default 10 px.
+    pub rematch_gate_px: f64,
+    /// See `rematch_gate_px`. Default 0.75.
+    pub rematch_box_fraction: f64,
 }
 
 impl Default for RelaxationTrackerConfig {
@@ -46,6 +61,9 @@ impl Default for RelaxationTrackerConfig {
             relaxation: RelaxationConfig::default(),
             max_missed_frames: 3,
             fallback_box_px: 15.0,
+            rematch: true,
+            rematch_gate_px: 10.0,
+            rematch_box_fraction: 0.75,
         }
     }
 }
@@ -57,6 +75,18 @@ impl RelaxationTrackerConfig {
     /// [`crate::Error::InvalidConfig`] naming the field.
     pub fn validate(&self) -> Result<()> {
         self.relaxation.validate()?;
+        for (name, v) in [
+            ("rematch_gate_px", self.rematch_gate_px),
+            ("rematch_box_fraction", self.rematch_box_fraction),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(crate::Error::config(
+                    "RelaxationTrackerConfig",
+                    name,
+                    "must be finite and non-negative",
+                ));
+            }
+        }
         if !(self.fallback_box_px.is_finite() && self.fallback_box_px >= 0.0) {
             return Err(crate::Error::config(
                 "RelaxationTrackerConfig",
@@ -154,6 +184,9 @@ impl RelaxationTracker {
                 }
             }
         }
+        if self.config.rematch {
+            self.rematch(frame, detections, &mut owner)?;
+        }
         let mut points = Vec::with_capacity(detections.len());
         for (k, d) in detections.iter().enumerate() {
             let id = match owner[k] {
@@ -196,6 +229,61 @@ impl RelaxationTracker {
         let k = self.config.max_missed_frames;
         self.tracks.retain(|t| frame - t.last_frame <= k);
         Ok(points)
+    }
+}
+
+impl RelaxationTracker {
+    /// The second assignment: unpaired live tracks, predicted to `frame`, against unclaimed
+    /// detections, minimum total distance within the gate.
+    fn rematch(
+        &self,
+        frame: u32,
+        detections: &[Detection],
+        owner: &mut [Option<usize>],
+    ) -> Result<()> {
+        let mut claimed = vec![false; self.tracks.len()];
+        for n in owner.iter().flatten() {
+            claimed[*n] = true;
+        }
+        let rows: Vec<usize> = (0..self.tracks.len()).filter(|&n| !claimed[n]).collect();
+        let cols: Vec<usize> = (0..detections.len())
+            .filter(|&k| owner[k].is_none())
+            .collect();
+        if rows.is_empty() || cols.is_empty() {
+            return Ok(());
+        }
+        let gate = |d: &Detection| {
+            let side = d.size_px.map_or(0.0, |(w, h)| w.max(h));
+            self.config
+                .rematch_gate_px
+                .max(self.config.rematch_box_fraction * side)
+        };
+        // Pairs beyond the gate cost more than any allowed set of pairs can save.
+        let forbidden = 1e9;
+        let mut cost = Vec::with_capacity(rows.len() * cols.len());
+        for &n in &rows {
+            let t = &self.tracks[n];
+            let ahead = f64::from(frame - t.last_frame);
+            let p = Point::new(
+                t.pos.x + t.velocity[0] * ahead,
+                t.pos.y + t.velocity[1] * ahead,
+            );
+            for &k in &cols {
+                let d = p.distance(detections[k].pos_px);
+                cost.push(if d <= gate(&detections[k]) {
+                    d
+                } else {
+                    forbidden
+                });
+            }
+        }
+        let pairs = crate::assignment::linear_sum_assignment(&cost, rows.len(), cols.len())?;
+        for (r, c) in pairs {
+            if cost[r * cols.len() + c] < forbidden {
+                owner[cols[c]] = Some(rows[r]);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -293,6 +381,47 @@ mod tests {
         // An empty frame is fine: every track is missed.
         assert!(t.step(2, 0.1, &[])?.is_empty());
         assert_eq!(t.live_tracks(), 2);
+        Ok(())
+    }
+
+    #[test]
+    fn pairs_the_relaxation_leaves_are_made_by_the_second_assignment_within_its_gate() -> Result<()>
+    {
+        // Two cars moving 8 px a frame, beyond a 5 px relaxation gate: the relaxation pairs
+        // nothing, so without the second assignment every frame starts new tracks.
+        let cars = |frame: u32| -> Vec<Detection> {
+            (0..2u64)
+                .map(|i| Detection {
+                    colour_rgb: Some([200.0, 50.0 + 100.0 * i as f64, 50.0]),
+                    size_px: Some((20.0, 10.0)),
+                    ..Detection::at(
+                        frame,
+                        i + 1,
+                        Point::new(100.0 + 300.0 * i as f64 + 8.0 * f64::from(frame), 80.0),
+                    )
+                })
+                .collect()
+        };
+        let ids = |rematch: bool, gate_px: f64, fraction: f64| -> Result<Vec<Vec<u64>>> {
+            let mut cfg = RelaxationTrackerConfig {
+                rematch,
+                rematch_gate_px: gate_px,
+                rematch_box_fraction: fraction,
+                ..Default::default()
+            };
+            cfg.relaxation.gate_half_width_px = 5.0;
+            let mut t = RelaxationTracker::new(cfg)?;
+            (1..=5)
+                .map(|f| Ok(ids_by_detection(&t.step(f, 0.0, &cars(f))?)))
+                .collect()
+        };
+        let paper = ids(false, 10.0, 0.75)?;
+        assert_eq!(paper[4], vec![9, 10], "{paper:?}");
+        // Frame 2 is predicted where frame 1 was (8 px off, inside max(10, 0.75 × 20) px);
+        // later frames where the last displacement leads.
+        assert_eq!(ids(true, 10.0, 0.75)?, vec![vec![1, 2]; 5]);
+        // A 6 px gate never reaches a new track (no displacement yet) 8 px away.
+        assert_eq!(ids(true, 6.0, 0.0)?, paper);
         Ok(())
     }
 }
