@@ -8,7 +8,9 @@
 
 use roadtrack::track::relaxation::baselines::{nearest_neighbour, optimal_assignment};
 use roadtrack::track::relaxation::scale::NetworkConfig;
-use roadtrack::track::relaxation::{RelaxationConfig, bench_scale, generate_road_network_pair};
+use roadtrack::track::relaxation::{
+    RelaxationConfig, generate_road_network_pair, scale_experiment,
+};
 
 fn main() -> roadtrack::Result<()> {
     let sizes: Vec<usize> = std::env::args()
@@ -25,7 +27,7 @@ fn main() -> roadtrack::Result<()> {
         "vehicles,detections1,detections2,labels,support_entries,build_s,solve_s,total_s,build_cpu_s,solve_cpu_s,iterations,converged,heap_mib,peak_rss_mib,correct_rate,nn_rate,assignment_rate,threads"
     );
     for n in sizes {
-        let r = bench_scale(n, &cfg, 1)?;
+        let r = scale_experiment(n, &cfg, 1)?;
         // Baselines on the same pair. The assignment is dense per connected component of
         // the gate graph, and on a network the component is the whole network: only up to
         // 1 000 vehicles.

@@ -126,7 +126,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             .filter(|&n| n <= args.max_vehicles)
         {
             bar.set_message(format!("relaxation {n}"));
-            let r = roadtrack::track::relaxation::bench_scale(n, &Default::default(), 1)?;
+            let r = roadtrack::track::relaxation::scale_experiment(n, &Default::default(), 1)?;
             results.push(StageResult::new(
                 "relaxation",
                 &format!("{n} vehicles, 0.3 m/px network"),

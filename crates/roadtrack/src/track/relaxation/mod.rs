@@ -57,7 +57,7 @@ pub use experiment::{ExperimentMethod, ExperimentTable, run_experiment};
 pub use labels::LabelGraph;
 pub use probabilities::{Probabilities, Solution};
 pub use problem::RelaxationProblem;
-pub use scale::{ScaleReport, bench_scale, generate_road_network_pair};
+pub use scale::{ScaleReport, generate_road_network_pair, scale_experiment};
 pub use sweep::{SweepGrid, SweepResult, sweep};
 pub use tracker::{RelaxationTracker, RelaxationTrackerConfig};
 pub use update::UpdateWeights;

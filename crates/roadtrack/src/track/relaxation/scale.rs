@@ -235,7 +235,11 @@ pub struct ScaleReport {
 ///
 /// # Errors
 /// From [`RelaxationProblem::new`].
-pub fn bench_scale(n_vehicles: usize, cfg: &RelaxationConfig, seed: u64) -> Result<ScaleReport> {
+pub fn scale_experiment(
+    n_vehicles: usize,
+    cfg: &RelaxationConfig,
+    seed: u64,
+) -> Result<ScaleReport> {
     let (f1, f2, truth) = generate_road_network_pair(n_vehicles, &NetworkConfig::default(), seed)?;
     let cpu0 = process_cpu_s();
     let t0 = Instant::now();
@@ -317,7 +321,7 @@ mod tests {
     #[test]
     fn paper_defaults_match_most_vehicles_of_the_network() -> Result<()> {
         // Measured 0.865 at seed 1 (docs/RELAXATION.md); the bar leaves room for seeds.
-        let r = bench_scale(1000, &RelaxationConfig::default(), 1)?;
+        let r = scale_experiment(1000, &RelaxationConfig::default(), 1)?;
         assert!(r.correct_rate > 0.8, "{r:?}");
         assert!(r.n_labels > r.n_detections.0, "{r:?}");
         Ok(())
