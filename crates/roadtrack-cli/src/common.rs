@@ -58,32 +58,48 @@ impl Ui {
 #[derive(Debug, Clone, clap::Args)]
 pub struct FrameArgs {
     /// Frames per second (image folders default to 10; overrides a video's own rate).
-    #[arg(long, value_name = "FPS")]
+    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
     pub fps: Option<f64>,
     /// First frame to read (1-based).
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub start: u32,
     /// Last frame to read, inclusive.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub end: Option<u32>,
     /// Read every N-th frame from --start.
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub step: u32,
 }
 
 impl FrameArgs {
-    pub fn options(&self) -> SourceOptions {
-        SourceOptions {
+    /// The frame selection; a bad one is a usage error naming the flags.
+    pub fn options(&self) -> Result<SourceOptions> {
+        let options = SourceOptions {
             fps: self.fps,
             start: self.start,
             end: self.end,
             step: self.step,
-        }
+        };
+        crate::flags::check_overrides(
+            options.validate(),
+            &[
+                ("start", "--start", true),
+                ("step", "--step", true),
+                ("end", "--end", true),
+                ("fps", "--fps", true),
+            ],
+            None,
+        )?;
+        Ok(options)
     }
 }
 
-/// Loads a TOML config when a path is given, else the default.
-pub fn load_config<T: serde::de::DeserializeOwned + Default>(path: Option<&Path>) -> Result<T> {
+/// Loads and validates a TOML config when a path is given (a bad value names the file and
+/// the key), else the default.
+pub fn load_config<T>(path: Option<&Path>) -> Result<T>
+where
+    T: serde::de::DeserializeOwned + Default + roadtrack::config::Validate,
+{
     match path {
         Some(p) => roadtrack::config::load_toml(p).with_context(|| "reading --config"),
         None => Ok(T::default()),
@@ -103,30 +119,44 @@ pub enum DetectorArg {
 #[derive(Debug, Clone, clap::Args)]
 pub struct LifecycleArgs {
     /// Write a track only once it has been seen in N frames (1: every track).
-    #[arg(long, value_name = "N", default_value_t = 3)]
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub confirm_hits: u32,
     /// Fill gaps of up to N frames in a track with interpolated boxes (0: none).
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub coast_frames: u32,
     /// The method's output as published: no confirmation, coasting, box smoothing or
-    /// per-track class (overrides --confirm-hits and --coast-frames), and relaxation
+    /// per-track class (not with --confirm-hits or --coast-frames), and relaxation
     /// without its second assignment.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames"])]
     pub as_published: bool,
 }
 
 impl LifecycleArgs {
-    /// The stage's configuration.
-    pub fn config(&self) -> roadtrack::track::confirm::LifecycleConfig {
+    /// The stage's configuration; a value out of range is a usage error naming the flag.
+    pub fn config(&self) -> Result<roadtrack::track::confirm::LifecycleConfig> {
         use roadtrack::track::confirm::LifecycleConfig;
         if self.as_published {
-            return LifecycleConfig::off();
+            return Ok(LifecycleConfig::off());
         }
-        LifecycleConfig {
+        let config = LifecycleConfig {
             confirm_hits: self.confirm_hits,
             max_coast_frames: self.coast_frames,
             ..LifecycleConfig::default()
-        }
+        };
+        crate::flags::check_overrides(
+            config.validate(),
+            &[
+                ("confirm_hits", "--confirm-hits", true),
+                ("max_coast_frames", "--coast-frames", true),
+                (
+                    "confirm_hits/max_coast_frames",
+                    "--confirm-hits/--coast-frames",
+                    true,
+                ),
+            ],
+            None,
+        )?;
+        Ok(config)
     }
 }
 
@@ -143,6 +173,12 @@ pub struct DetectorArgs {
 }
 
 impl DetectorArgs {
+    /// Whether the detections come from a file (`--detector file` or `--detections F`).
+    pub fn is_file(&self) -> bool {
+        self.detector == Some(DetectorArg::File)
+            || (self.detector.is_none() && self.detections.is_some())
+    }
+
     /// The detector asked for; `None` leaves the choice to the method (its own background
     /// detector). `background` is the background detector with `config`.
     pub fn spec(
@@ -159,7 +195,9 @@ impl DetectorArgs {
         Ok(Some(match kind {
             DetectorArg::Background => {
                 if self.detections.is_some() {
-                    anyhow::bail!("--detections needs --detector file");
+                    return Err(crate::flags::conflict(
+                        "--detections needs --detector file, not --detector background",
+                    ));
                 }
                 DetectorSpec::Background(background()?)
             }

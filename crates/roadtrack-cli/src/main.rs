@@ -4,9 +4,10 @@
 mod cmd;
 mod common;
 mod demo;
+mod flags;
 mod overlay;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Trajectories of vehicles and pedestrians from traffic imagery.
@@ -63,7 +64,9 @@ fn remove_outputs_on_signals() {}
 
 fn main() -> ExitCode {
     remove_outputs_on_signals();
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let subcommand = matches.subcommand_name().unwrap_or_default().to_owned();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let ui = common::Ui::new(cli.quiet, cli.verbose);
     let result = match cli.command {
         Command::Analyze(args) => cmd::analyze::run(args, &ui),
@@ -85,6 +88,16 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            if let Some(usage) = err.downcast_ref::<flags::UsageError>() {
+                // Wrong flags found after parsing: reported as clap reports its own (exit 2).
+                let mut cmd = Cli::command();
+                cmd.build();
+                let error = match cmd.find_subcommand_mut(&subcommand) {
+                    Some(sub) => sub.error(usage.kind, &usage.message),
+                    None => cmd.error(usage.kind, &usage.message),
+                };
+                error.exit();
+            }
             eprintln!("roadtrack: error: {err:#}");
             ExitCode::from(1)
         }

@@ -116,8 +116,8 @@ fn bad_input_exits_1_naming_the_path_and_bad_usage_exits_2() {
         .arg("detect")
         .arg(fixture("tiny_sequence"))
         .args(["--step", "0"]));
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("step"), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--step"), "{}", stderr(&o));
 }
 
 #[test]

@@ -36,6 +36,7 @@
 //! the point-pair form uses the normalised direct linear transform (Hartley & Zisserman,
 //! alg. 4.2) solved by SVD (nalgebra) and reports the reprojection error ([`FitReport`]).
 
+use crate::config::exact;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use serde::{Deserialize, Serialize};
@@ -58,8 +59,10 @@ pub struct Calibration {
 #[serde(deny_unknown_fields)]
 pub struct PointPair {
     /// Image position `[u, v]`, px.
+    #[serde(deserialize_with = "exact::array")]
     pub image: [f64; 2],
     /// Ground position `[x, y]`, m.
+    #[serde(deserialize_with = "exact::array")]
     pub ground: [f64; 2],
 }
 
@@ -93,11 +96,19 @@ pub struct NadirScale {
 struct CalibrationFile {
     #[serde(skip_serializing_if = "Option::is_none")]
     metres_per_pixel: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact::option_array"
+    )]
     origin_m: Option<[f64; 2]>,
     #[serde(skip_serializing_if = "Option::is_none")]
     rotation_deg: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "exact::option_matrix"
+    )]
     image_from_ground: Option<Mat3>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     points: Vec<PointPair>,
@@ -153,7 +164,8 @@ impl Calibration {
     /// image's `+x` axis along ground direction `rotation_deg`.
     ///
     /// # Errors
-    /// A scale that is not finite and positive, or a non-finite origin or angle.
+    /// A scale that is not finite and positive, or a non-finite origin or angle (each
+    /// named by its field).
     pub fn from_nadir(
         metres_per_pixel: f64,
         origin_m: [f64; 2],
@@ -166,8 +178,19 @@ impl Calibration {
                 format!("must be finite and positive, found {metres_per_pixel}"),
             ));
         }
-        if !(origin_m.iter().all(|v| v.is_finite()) && rotation_deg.is_finite()) {
-            return Err(Error::config("Calibration", "origin_m", "must be finite"));
+        if !origin_m.iter().all(|v| v.is_finite()) {
+            return Err(Error::config(
+                "Calibration",
+                "origin_m",
+                format!("must be finite, found {origin_m:?}"),
+            ));
+        }
+        if !rotation_deg.is_finite() {
+            return Err(Error::config(
+                "Calibration",
+                "rotation_deg",
+                format!("must be finite, found {rotation_deg}"),
+            ));
         }
         let (s, c) = rotation_deg.to_radians().sin_cos();
         let k = metres_per_pixel;
@@ -291,16 +314,26 @@ impl Calibration {
                 ));
             }
             return Self::from_point_pairs(&file.points).map_err(|e| match e {
-                Error::Invalid(m) => Error::format(path, m),
-                other => other,
+                Error::Invalid(m) => Error::format(path, format!("points: {m}")),
+                other => other.in_file(path),
             });
+        }
+        if file.metres_per_pixel.is_none() && file.image_from_ground.is_none() {
+            // Only `origin_m` or `rotation_deg`: the scale they belong to is missing.
+            if file.origin_m.is_some() || file.rotation_deg.is_some() {
+                return Err(Error::format(
+                    path,
+                    "origin_m and rotation_deg need metres_per_pixel",
+                ));
+            }
         }
         match (file.metres_per_pixel, file.image_from_ground) {
             (Some(k), None) => Self::from_nadir(
                 k,
                 file.origin_m.unwrap_or([0.0, 0.0]),
                 file.rotation_deg.unwrap_or(0.0),
-            ),
+            )
+            .map_err(|e| e.in_file(path)),
             (None, Some(h)) => {
                 if file.origin_m.is_some() || file.rotation_deg.is_some() {
                     return Err(Error::format(
@@ -308,7 +341,7 @@ impl Calibration {
                         "origin_m and rotation_deg belong to the metres_per_pixel form, not to image_from_ground",
                     ));
                 }
-                Self::from_homography(h)
+                Self::from_homography(h).map_err(|e| e.in_file(path))
             }
             (Some(_), Some(_)) => Err(Error::format(
                 path,
@@ -335,13 +368,16 @@ impl Calibration {
                 pairs.len()
             )));
         }
-        if pairs
+        if let Some(k) = pairs
             .iter()
-            .any(|p| p.image.iter().chain(&p.ground).any(|v| !v.is_finite()))
+            .position(|p| p.image.iter().chain(&p.ground).any(|v| !v.is_finite()))
         {
-            return Err(Error::Invalid(
-                "a point pair has a non-finite coordinate".into(),
-            ));
+            return Err(Error::Invalid(format!(
+                "point pair {} has a non-finite coordinate (image {:?}, ground {:?})",
+                k + 1,
+                pairs[k].image,
+                pairs[k].ground
+            )));
         }
         // Similarity normalisation: centroid to the origin, mean distance √2.
         fn normaliser(pts: &[[f64; 2]]) -> Mat3 {
@@ -519,6 +555,64 @@ mod tests {
         assert!(Calibration::from_toml_str("", p).is_err());
         assert!(Calibration::from_toml_str("metres_per_pixel = 1.0\nscale = 2\n", p).is_err());
         assert!(Calibration::from_toml_str("metres_per_pixel = -1.0\n", p).is_err());
+    }
+
+    #[test]
+    fn arrays_must_have_their_exact_length_and_nan_is_named_by_field() {
+        let p = Path::new("calib.toml");
+        let err = |text: &str| {
+            Calibration::from_toml_str(text, p)
+                .expect_err(text)
+                .to_string()
+        };
+        let id = "[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]";
+        for (text, needle) in [
+            (
+                "image_from_ground = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n".to_owned(),
+                "exactly 3 values",
+            ),
+            (format!("image_from_ground = [{id}, [0.0, 0.0, 1.0]]\n"), "exactly 3 values"),
+            ("image_from_ground = [[1.0, 0.0], [0.0, 1.0]]\n".to_owned(), "exactly 3"),
+            (
+                "metres_per_pixel = 0.5\norigin_m = [1.0, 2.0, 3.0, 4.0]\n".to_owned(),
+                "exactly 2 values",
+            ),
+            (
+                "[[points]]\nimage = [1.0, 2.0, 3.0]\nground = [0.0, 0.0]\n".to_owned(),
+                "exactly 2 values",
+            ),
+            ("metres_per_pixel = nan\n".to_owned(), "metres_per_pixel"),
+            ("metres_per_pixel = inf\n".to_owned(), "metres_per_pixel"),
+            (
+                "metres_per_pixel = 0.5\norigin_m = [nan, 2.0]\n".to_owned(),
+                "origin_m",
+            ),
+            (
+                "metres_per_pixel = 0.5\nrotation_deg = nan\n".to_owned(),
+                "rotation_deg",
+            ),
+            (
+                "image_from_ground = [[1.0, 0.0, nan], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n"
+                    .to_owned(),
+                "image_from_ground",
+            ),
+            (
+                "image_from_ground = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 0.0, 1.0]]\n"
+                    .to_owned(),
+                "image_from_ground: matrix is singular",
+            ),
+        ] {
+            let e = err(&text);
+            assert!(e.starts_with("calib.toml"), "{text}: {e}");
+            assert!(e.contains(needle), "{text}: {e}");
+            assert!(!e.contains("Calibration."), "{text}: {e}");
+        }
+        let nan_pair = "[[points]]\nimage = [0.0, 0.0]\nground = [0.0, 0.0]\n\
+             [[points]]\nimage = [1.0, 0.0]\nground = [1.0, 0.0]\n\
+             [[points]]\nimage = [1.0, 1.0]\nground = [1.0, 1.0]\n\
+             [[points]]\nimage = [0.0, nan]\nground = [0.0, 1.0]\n";
+        let e = err(nan_pair);
+        assert!(e.contains("calib.toml: points: point pair 4"), "{e}");
     }
 
     #[test]

@@ -14,8 +14,8 @@ pub enum Error {
     InvalidConfig {
         /// The config struct, e.g. `RelaxationConfig`.
         config: &'static str,
-        /// The offending field.
-        field: &'static str,
+        /// The offending field (`table.field` for a field of a nested table).
+        field: String,
         /// What is wrong with it.
         reason: String,
     },
@@ -142,11 +142,96 @@ impl Error {
     }
 
     /// An [`Error::InvalidConfig`].
-    pub fn config(config: &'static str, field: &'static str, reason: impl Into<String>) -> Self {
+    pub fn config(
+        config: &'static str,
+        field: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> Self {
         Error::InvalidConfig {
             config,
-            field,
+            field: field.into(),
             reason: reason.into(),
         }
+    }
+
+    /// An [`Error::InvalidConfig`] of a nested table: its field becomes `table.field`, so
+    /// that the message names the place in the file (`pf.n_particles`). Other errors pass
+    /// through unchanged.
+    #[must_use]
+    pub fn in_table(self, table: &str) -> Self {
+        match self {
+            Error::InvalidConfig {
+                config,
+                field,
+                reason,
+            } => Error::InvalidConfig {
+                config,
+                field: format!("{table}.{field}"),
+                reason,
+            },
+            other => other,
+        }
+    }
+
+    /// An [`Error::InvalidConfig`] found in the values read from `path`, as
+    /// `path: field: reason` (the file and the key, not the Rust struct). Other errors pass
+    /// through unchanged.
+    #[must_use]
+    pub fn in_file(self, path: &std::path::Path) -> Self {
+        match self {
+            Error::InvalidConfig { field, reason, .. } => Error::Format {
+                path: path.to_owned(),
+                message: format!("{field}: {reason}"),
+            },
+            Error::Invalid(message) => Error::Format {
+                path: path.to_owned(),
+                message,
+            },
+            other => other,
+        }
+    }
+}
+
+/// `Ok` when `value` is finite and within `range`, else an [`Error::InvalidConfig`] for
+/// `config.field` saying so (NaN and ±∞ are rejected by name, whatever the range).
+///
+/// # Errors
+/// As above.
+pub fn check_range(
+    config: &'static str,
+    field: &str,
+    value: f64,
+    range: impl std::ops::RangeBounds<f64>,
+) -> Result<()> {
+    if !value.is_finite() {
+        return Err(Error::config(
+            config,
+            field,
+            format!("must be a finite number, found {value}"),
+        ));
+    }
+    if !range.contains(&value) {
+        return Err(Error::config(
+            config,
+            field,
+            format!("must be in {}, found {value}", describe(&range)),
+        ));
+    }
+    Ok(())
+}
+
+/// `range` in words: `(0, 1]`, `≥ 0`, `> 0`.
+fn describe(range: &impl std::ops::RangeBounds<f64>) -> String {
+    use std::ops::Bound::{Excluded, Included, Unbounded};
+    match (range.start_bound(), range.end_bound()) {
+        (Unbounded, Unbounded) => "any finite value".into(),
+        (Included(a), Unbounded) => format!("[{a}, ∞)"),
+        (Excluded(a), Unbounded) => format!("({a}, ∞)"),
+        (Unbounded, Included(b)) => format!("(−∞, {b}]"),
+        (Unbounded, Excluded(b)) => format!("(−∞, {b})"),
+        (Included(a), Included(b)) => format!("[{a}, {b}]"),
+        (Included(a), Excluded(b)) => format!("[{a}, {b})"),
+        (Excluded(a), Included(b)) => format!("({a}, {b}]"),
+        (Excluded(a), Excluded(b)) => format!("({a}, {b})"),
     }
 }

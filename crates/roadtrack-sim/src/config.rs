@@ -608,10 +608,27 @@ impl Default for DetectionNoiseConfig {
 
 fn check(ok: bool, config: &'static str, field: &'static str, reason: &str) -> Result<()> {
     if ok {
-        Ok(())
-    } else {
-        Err(Error::config(config, field, reason))
+        return Ok(());
     }
+    // The field as the file spells it: `road.length_m`, not `RoadConfig.length_m`.
+    let table = match config {
+        "RoadConfig" => Some("road"),
+        "IntersectionConfig" => Some("intersection"),
+        "IntersectionSignalConfig" => Some("intersection.signal"),
+        "CrossingConfig" => Some("crossing"),
+        "VehicleConfig" => Some("vehicles"),
+        "PedestrianConfig" => Some("pedestrians"),
+        "AerialConfig" => Some("aerial"),
+        "ObliqueConfig" => Some("oblique"),
+        "SimRenderConfig" => Some("render"),
+        "DetectionNoiseConfig" => Some("detections"),
+        _ => None,
+    };
+    let e = Error::config(config, field, reason);
+    Err(match table {
+        Some(t) => e.in_table(t),
+        None => e,
+    })
 }
 
 fn pos(x: f64) -> bool {
@@ -626,6 +643,12 @@ fn prob(x: f64) -> bool {
     (0.0..=1.0).contains(&x)
 }
 
+impl roadtrack_core::config::Validate for SimConfig {
+    fn validate(&self) -> Result<()> {
+        SimConfig::validate(self)
+    }
+}
+
 impl SimConfig {
     /// Parses TOML text (partial files keep the defaults); `path` names the source in errors.
     ///
@@ -636,7 +659,7 @@ impl SimConfig {
             path: path.to_owned(),
             message: e.to_string(),
         })?;
-        c.validate()?;
+        c.validate().map_err(|e| e.in_file(path))?;
         Ok(c)
     }
 
@@ -645,7 +668,7 @@ impl SimConfig {
         toml::to_string(self).unwrap_or_default()
     }
 
-    /// Checks every value is in range.
+    /// Checks every value is in range (NaN and ±∞ are out of every range).
     ///
     /// # Errors
     /// [`Error::InvalidConfig`] naming the first bad field.
@@ -720,7 +743,8 @@ impl SimConfig {
             "widths must be positive",
         )?;
         check(
-            i.arm_length_m > 4.0 * i.lane_width_m + i.crosswalk_width_m + 20.0,
+            pos(i.arm_length_m)
+                && i.arm_length_m > 4.0 * i.lane_width_m + i.crosswalk_width_m + 20.0,
             I,
             "arm_length_m",
             "too short for the lanes and crosswalk",
@@ -771,7 +795,7 @@ impl SimConfig {
             "widths must be positive",
         )?;
         check(
-            c.half_length_m > c.crosswalk_width_m + 20.0,
+            pos(c.half_length_m) && c.half_length_m > c.crosswalk_width_m + 20.0,
             X,
             "half_length_m",
             "too short for the crosswalk",
@@ -846,6 +870,7 @@ impl SimConfig {
             pos(v.time_headway_s)
                 && pos(v.min_gap_m)
                 && pos(v.comfort_decel_mps2)
+                && pos(v.max_decel_mps2)
                 && v.max_decel_mps2 >= v.comfort_decel_mps2,
             V,
             "time_headway_s",

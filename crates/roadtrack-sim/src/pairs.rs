@@ -88,12 +88,13 @@ impl PairsConfig {
         if !(0.0..1.0).contains(&self.drop_fraction) {
             return bad("drop_fraction", "must be in [0, 1)");
         }
-        if !(self.position_sd_px >= 0.0 && self.colour_sd >= 0.0) {
-            return bad("position_sd_px", "noise must be ≥ 0");
+        use roadtrack_core::error::check_range;
+        check_range("PairsConfig", "position_sd_px", self.position_sd_px, 0.0..)?;
+        check_range("PairsConfig", "colour_sd", self.colour_sd, 0.0..)?;
+        if !(self.spacing_s.is_finite() && self.spacing_s > 0.0) {
+            return bad("spacing_s", "must be finite and positive");
         }
-        if !(self.spacing_s > 0.0 && self.warmup_s >= 0.0) {
-            return bad("spacing_s", "spacing must be positive and warm-up ≥ 0");
-        }
+        check_range("PairsConfig", "warmup_s", self.warmup_s, 0.0..)?;
         Ok(())
     }
 }

@@ -30,10 +30,10 @@ pub struct Args {
     #[arg(short, long, default_value = "analysis")]
     pub output: PathBuf,
     /// Frame rate for MOTChallenge input (time = (frame − 1) / fps).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = crate::flags::positive)]
     pub fps: f64,
     /// Half-width of the speed smoother's window, s.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_name = "S", value_parser = crate::flags::non_negative)]
     pub smooth_s: f64,
     /// Also write the trajectories on the ground as GeoJSON.
     #[arg(long, value_name = "F.geojson")]

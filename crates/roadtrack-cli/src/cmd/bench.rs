@@ -17,26 +17,45 @@ pub struct Args {
     #[arg(long, default_value = "../shared/data/vtest.avi")]
     pub video: PathBuf,
     /// Frames of the generated 640×480 sequence.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = 300, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
-    /// Stages to run (default all): decode, detect, simulate, pipeline (decode, detect,
-    /// track and write with each method's defaults), relaxation, mrf, filters, cnn
-    /// (network scoring per window and dense, and a PHD tracking step with a CNN
-    /// likelihood per stage; the SSD rows when scripts/setup.sh --models has run).
-    #[arg(long, value_delimiter = ',')]
-    pub stages: Vec<String>,
+    /// Stages to run, comma-separated (default all).
+    #[arg(long, value_delimiter = ',', value_enum, value_name = "STAGE,…")]
+    pub stages: Vec<Stage>,
     /// Largest vehicle count of the relaxation scale stage (50, 1 000, 10 000, 100 000).
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub max_vehicles: usize,
+}
+
+/// The stages of `--stages`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Stage {
+    /// Video decoding (needs --video and ffmpeg).
+    Decode,
+    /// Background-subtraction detection.
+    Detect,
+    /// The traffic simulator.
+    Simulate,
+    /// Decode, detect, track and write with each method's defaults.
+    Pipeline,
+    /// Relaxation matching, up to --max-vehicles.
+    Relaxation,
+    /// The MRF tracker.
+    Mrf,
+    /// The particle and PHD filters.
+    Filters,
+    /// Network scoring per window and dense, and a PHD tracking step with a CNN
+    /// likelihood (the SSD rows when scripts/setup.sh --models has run).
+    Cnn,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let machine = bench::machine();
     let mut results: Vec<StageResult> = Vec::new();
-    let want = |s: &str| args.stages.is_empty() || args.stages.iter().any(|x| x == s);
+    let want = |s: Stage| args.stages.is_empty() || args.stages.contains(&s);
     let bar = ui.progress(None, "bench");
     let have_video = args.video.is_file() && roadtrack::io::video::ffmpeg_available();
     if !have_video {
@@ -45,12 +64,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             args.video.display()
         ));
     }
-    if have_video && want("decode") {
+    if have_video && want(Stage::Decode) {
         bar.set_message("decode");
         results.push(bench::decode(&args.video, &SourceOptions::default())?);
     }
     let generated = roadtrack_sim::testkit::moving_boxes(640, 480, args.frames, 12);
-    if want("detect") {
+    if want(Stage::Detect) {
         bar.set_message("detect");
         if have_video {
             let (label, frames) = bench::load_frames(&args.video, 400)?;
@@ -66,7 +85,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             &BackgroundDetectorConfig::default(),
         )?);
     }
-    if want("simulate") {
+    if want(Stage::Simulate) {
         use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
         for (scene, view, name) in [
             (SceneKind::Road, ViewKind::Aerial, "road aerial"),
@@ -100,7 +119,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             ));
         }
     }
-    if want("pipeline") {
+    if want(Stage::Pipeline) {
         // Decode + detect + track + write, per method, on a simulated intersection.
         use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
         bar.set_message("pipeline: simulating");
@@ -120,7 +139,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             0,
         )?);
     }
-    if want("relaxation") {
+    if want(Stage::Relaxation) {
         for n in [50usize, 1_000, 10_000, 100_000]
             .into_iter()
             .filter(|&n| n <= args.max_vehicles)
@@ -136,7 +155,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             ));
         }
     }
-    if want("mrf") {
+    if want(Stage::Mrf) {
         bar.set_message("mrf");
         let cfg = roadtrack::track::mrf::MrfConfig::default();
         let b = bench::mrf::bench_mrf(&cfg, &generated, 1, 0)?;
@@ -159,7 +178,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             ));
         }
     }
-    if want("filters") {
+    if want(Stage::Filters) {
         bar.set_message("filters");
         let reports = bench::filters::bench_filters(&Default::default(), &mut |_, _| {})?;
         for r in reports {
@@ -173,11 +192,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         }
     }
     #[cfg(not(feature = "cnn"))]
-    if want("cnn") {
+    if want(Stage::Cnn) {
         ui.info("note: built without the `cnn` feature; skipping the cnn stage");
     }
     #[cfg(feature = "cnn")]
-    if want("cnn") {
+    if want(Stage::Cnn) {
         bar.set_message("cnn");
         let ssd = roadtrack_cnn::ssd::default_model_path().filter(|p| p.is_file());
         if ssd.is_none() {

@@ -26,13 +26,13 @@ pub struct Args {
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
     /// Smallest region kept, px² (overrides the config).
-    #[arg(long)]
+    #[arg(long, value_name = "PX2")]
     pub min_area: Option<u32>,
     /// Largest region kept, px² (overrides the config).
-    #[arg(long)]
+    #[arg(long, value_name = "PX2")]
     pub max_area: Option<u32>,
     /// Foreground threshold in standard deviations (overrides the config).
-    #[arg(long)]
+    #[arg(long, value_name = "K", value_parser = crate::flags::positive)]
     pub threshold_sigma: Option<f64>,
     /// Also write each frame with the detected boxes drawn, as PNG, into this folder.
     #[arg(long, value_name = "DIR")]
@@ -47,6 +47,18 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    if args.detector.is_file() {
+        crate::flags::reject_given(
+            &[
+                ("--config", args.config.is_some()),
+                ("--min-area", args.min_area.is_some()),
+                ("--max-area", args.max_area.is_some()),
+                ("--threshold-sigma", args.threshold_sigma.is_some()),
+                ("--masks", args.masks.is_some()),
+            ],
+            "only for the background detector, not --detector file",
+        )?;
+    }
     let mut config: BackgroundDetectorConfig = load_config(args.config.as_deref())?;
     if let Some(a) = args.min_area {
         config.regions.min_area_px = a;
@@ -57,8 +69,21 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if let Some(k) = args.threshold_sigma {
         config.background.threshold_sigma = k;
     }
-    config.validate()?;
-    let options = args.frames.options();
+    crate::flags::check_overrides(
+        config.validate(),
+        &[
+            ("regions.min_area_px", "--min-area", args.min_area.is_some()),
+            // min > max is reported at min_area_px, whichever flag set it.
+            ("regions.min_area_px", "--max-area", args.max_area.is_some()),
+            (
+                "background.threshold_sigma",
+                "--threshold-sigma",
+                args.threshold_sigma.is_some(),
+            ),
+        ],
+        args.config.as_deref(),
+    )?;
+    let options = args.frames.options()?;
     let info = source::open(&args.input, &options)?.info;
     let total = info.selected_frames;
     ui.detail(format!(
@@ -74,9 +99,6 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         .detector
         .spec(&args.input, || Ok(config.clone()))?
         .unwrap_or(DetectorSpec::Background(config));
-    if args.masks.is_some() && !matches!(spec, DetectorSpec::Background(_)) {
-        anyhow::bail!("--masks needs a detector with a foreground mask (--detector background)");
-    }
     let mut detector = spec.build(&args.input, &options, &info)?;
     bar.finish_and_clear();
     let frames = source::open(&args.input, &options)?;

@@ -78,10 +78,10 @@ pub struct Args {
     #[arg(long)]
     pub no_preprocess: bool,
     /// IoU a CLEAR / identity match needs (default 0.5).
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", value_parser = crate::flags::fraction)]
     pub iou_threshold: Option<f64>,
     /// Sequence length in frames (default: seqinfo.ini's seqLength, else the last frame).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub num_frames: Option<u32>,
     /// Also compute position RMSE in x and y and speed RMSE (px, px/s; with --calibration
     /// also m and km/h) of tracks associated with truth objects.
@@ -89,13 +89,13 @@ pub struct Args {
     pub rmse: bool,
     /// Distance gate, px: associates tracks with truth objects for --rmse (default 100) and
     /// matches detections for --detections (required there).
-    #[arg(long, value_name = "PX")]
+    #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub gate_px: Option<f64>,
     /// Calibration TOML (`roadtrack simulate` writes one) for RMSE in ground units.
     #[arg(long, value_name = "C.toml", requires = "rmse")]
     pub calibration: Option<PathBuf>,
     /// Frame rate for speeds (default: seqinfo.ini's frameRate, else 10).
-    #[arg(long, value_name = "FPS")]
+    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
     pub fps: Option<f64>,
     /// Detections CSV: the detection table TP / FP / FN against the truth within --gate-px.
     #[arg(long, value_name = "D.csv", requires_all = ["truth", "gate_px"])]
@@ -120,14 +120,34 @@ pub struct Args {
     #[arg(long, value_name = "P.csv", requires = "ospa")]
     pub truth_points: Option<PathBuf>,
     /// OSPA cut-off c, in the points' units (default 20).
-    #[arg(long, value_name = "C", requires = "ospa")]
+    #[arg(long, value_name = "C", requires = "ospa", value_parser = crate::flags::positive)]
     pub cutoff: Option<f64>,
     /// OSPA order p ≥ 1 (default 1).
-    #[arg(long, value_name = "P", requires = "ospa")]
+    #[arg(long, value_name = "P", requires = "ospa", value_parser = ospa_order)]
     pub order: Option<f64>,
     /// GOSPA α in (0, 2] (default 2).
-    #[arg(long, value_name = "A", requires = "ospa")]
+    #[arg(long, value_name = "A", requires = "ospa", value_parser = gospa_alpha)]
     pub alpha: Option<f64>,
+}
+
+/// `--order`: a finite p ≥ 1.
+fn ospa_order(s: &str) -> Result<f64, String> {
+    let v = crate::flags::finite(s)?;
+    if v >= 1.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be ≥ 1, found {s}"))
+    }
+}
+
+/// `--alpha`: α in (0, 2].
+fn gospa_alpha(s: &str) -> Result<f64, String> {
+    let v = crate::flags::positive(s)?;
+    if v <= 2.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be in (0, 2], found {s}"))
+    }
 }
 
 /// Wrong usage: clap's message format and exit status 2.
@@ -198,6 +218,19 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if let Some(t) = args.iou_threshold {
         cfg.iou_threshold = t;
     }
+    crate::flags::check_overrides(
+        cfg.validate(),
+        &[
+            (
+                "iou_threshold",
+                "--iou-threshold",
+                args.iou_threshold.is_some(),
+            ),
+            ("classes", "--class-list", args.class_list.is_some()),
+            ("classes", "--classes", args.classes.is_some()),
+        ],
+        args.config.as_deref(),
+    )?;
     if let Some(t) = &args.tracks
         && cfg.mode == ClassMode::PerClass
         && !is_csv(t)

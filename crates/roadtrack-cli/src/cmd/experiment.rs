@@ -3,7 +3,7 @@
 
 use super::matching::RelaxArgs;
 use crate::common::Ui;
-use anyhow::{Result, bail};
+use anyhow::Result;
 use roadtrack::track::relaxation::experiment::problem_dirs;
 use roadtrack::track::relaxation::{
     DecisionRule, ExperimentMethod, RelaxationVariant, run_experiment,
@@ -72,13 +72,20 @@ fn parse_method(s: &str) -> Result<ExperimentMethod, String> {
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    crate::flags::reject_given(
+        &[
+            ("--variant", args.relax.variant.is_some()),
+            ("--decision", args.relax.decision.is_some()),
+        ],
+        "chosen per method here: name it in --methods (e.g. d+one-to-one)",
+    )?;
+    if args.methods.is_empty() {
+        return Err(crate::flags::invalid("--methods is empty"));
+    }
     let cfg = args.relax.config()?;
     let mut dirs = Vec::new();
     for d in &args.problems_dirs {
         dirs.extend(problem_dirs(d)?);
-    }
-    if args.methods.is_empty() {
-        bail!("--methods is empty");
     }
     let bar = ui.progress(Some(dirs.len() as u64), "problems");
     let table = run_experiment(&dirs, &args.methods, &cfg, &mut |d, _| bar.set_position(d))?;

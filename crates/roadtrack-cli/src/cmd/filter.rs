@@ -32,31 +32,31 @@ pub struct Args {
     #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region, allow_hyphen_values = true)]
     pub region: Option<SurveillanceRegion>,
     /// Time between steps (default 1).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub dt: Option<f64>,
     /// Detection probability p_D (default 0.88).
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", value_parser = crate::flags::probability)]
     pub detection_prob: Option<f64>,
     /// Survival probability p_s (default 0.9).
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", value_parser = crate::flags::probability)]
     pub survival_prob: Option<f64>,
     /// Expected false measurements per step, uniform over the region (default 1).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::flags::positive)]
     pub clutter_rate: Option<f64>,
     /// Expected births per step, uniform over the region (default 0.1).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = crate::flags::non_negative)]
     pub birth_rate: Option<f64>,
     /// Measurement noise, standard deviation per axis (default 1).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub measurement_sigma: Option<f64>,
     /// Acceleration noise, standard deviation per axis (default 0.5).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = crate::flags::non_negative)]
     pub process_sigma: Option<f64>,
     /// Particles per expected target ρ (default 70).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub particles_per_target: Option<usize>,
     /// Standard deviation of a newborn target's velocity per axis (default 3).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = crate::flags::non_negative)]
     pub birth_speed_sigma: Option<f64>,
     /// Random seed.
     #[arg(long, default_value_t = 0)]
@@ -111,7 +111,36 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         particles_per_target,
         birth_speed_sigma
     );
-    cfg.validate()?;
+    let given = |f: &str| -> bool {
+        match f {
+            "--dt" => args.dt.is_some(),
+            "--detection-prob" => args.detection_prob.is_some(),
+            "--survival-prob" => args.survival_prob.is_some(),
+            "--clutter-rate" => args.clutter_rate.is_some(),
+            "--birth-rate" => args.birth_rate.is_some(),
+            "--measurement-sigma" => args.measurement_sigma.is_some(),
+            "--process-sigma" => args.process_sigma.is_some(),
+            "--particles-per-target" => args.particles_per_target.is_some(),
+            "--birth-speed-sigma" => args.birth_speed_sigma.is_some(),
+            "--region" => args.region.is_some(),
+            _ => false,
+        }
+    };
+    let fields = [
+        ("dt", "--dt"),
+        ("detection_prob", "--detection-prob"),
+        ("survival_prob", "--survival-prob"),
+        ("clutter_rate", "--clutter-rate"),
+        ("birth_rate", "--birth-rate"),
+        ("measurement_sigma", "--measurement-sigma"),
+        ("motion", "--process-sigma"),
+        ("particles_per_object", "--particles-per-target"),
+        ("max_particles", "--particles-per-target"),
+        ("birth_speed_sigma", "--birth-speed-sigma"),
+        ("region", "--region"),
+    ];
+    let flags: Vec<(&str, &str, bool)> = fields.iter().map(|&(f, l)| (f, l, given(l))).collect();
+    crate::flags::check_overrides(cfg.validate(), &flags, args.config.as_deref())?;
     let measurements = read_measurements(&args.measurements)?;
     let steps = match (measurements.first(), measurements.last()) {
         (Some(a), Some(b)) => b.step - a.step + 1,

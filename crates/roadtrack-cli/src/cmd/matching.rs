@@ -19,26 +19,26 @@ pub struct RelaxArgs {
     #[arg(long, value_enum, value_name = "V")]
     pub variant: Option<RelaxationVariant>,
     /// A, eqs. 19–20: weight of a label's own evidence [default: 0.5].
-    #[arg(long, value_name = "A")]
+    #[arg(long, value_name = "A", value_parser = crate::flags::non_negative)]
     pub own_weight: Option<f64>,
     /// B, eqs. 19–20: weight of the same-direction neighbour support [default: 1].
-    #[arg(long, value_name = "B")]
+    #[arg(long, value_name = "B", value_parser = crate::flags::non_negative)]
     pub forward_support_weight: Option<f64>,
     /// C, eqs. 19–20: weight of the opposite-direction support (bidirectional variants)
     /// [default: 1].
-    #[arg(long, value_name = "C")]
+    #[arg(long, value_name = "C", value_parser = crate::flags::non_negative)]
     pub backward_support_weight: Option<f64>,
     /// T, eq. 15: displacements within this distance are similar, px [default: 20].
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", value_parser = crate::flags::non_negative)]
     pub similar_displacement_px: Option<f64>,
     /// R, eq. 16: vehicles within this distance are neighbours, px [default: 200].
-    #[arg(long, value_name = "R")]
+    #[arg(long, value_name = "R", value_parser = crate::flags::non_negative)]
     pub neighbour_radius_px: Option<f64>,
     /// D, eq. 3: half-width of the square search gate, px [default: 150].
-    #[arg(long, value_name = "D")]
+    #[arg(long, value_name = "D", value_parser = crate::flags::non_negative)]
     pub gate_half_width_px: Option<f64>,
     /// Stop when no probability changes by more than this [default: 1e-6].
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", value_parser = crate::flags::non_negative)]
     pub epsilon: Option<f64>,
     /// Iteration cap [default: 50].
     #[arg(long, value_name = "N")]
@@ -74,8 +74,24 @@ impl RelaxArgs {
         if let Some(d) = self.decision {
             c.decision = d;
         }
+        // Every flag is range-checked by clap, and the file by `load_config`.
         c.validate()?;
         Ok(c)
+    }
+
+    /// The weight flags given (A, B, C), for commands that set them otherwise.
+    pub fn weight_flags(&self) -> [(&'static str, bool); 3] {
+        [
+            ("--own-weight", self.own_weight.is_some()),
+            (
+                "--forward-support-weight",
+                self.forward_support_weight.is_some(),
+            ),
+            (
+                "--backward-support-weight",
+                self.backward_support_weight.is_some(),
+            ),
+        ]
     }
 }
 
@@ -118,6 +134,13 @@ fn read_frame(path: &Path) -> Result<Vec<roadtrack::Detection>> {
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let cfg = args.relax.config()?;
+    if args.relax.backward_support_weight.is_some() && !cfg.variant.bidirectional() {
+        return Err(crate::flags::conflict(format!(
+            "--backward-support-weight (C) is used by the bidirectional variants only, \
+             not by --variant {}",
+            cfg.variant
+        )));
+    }
     let f1 = read_frame(&args.frame1)?;
     let f2 = read_frame(&args.frame2)?;
     let m = match_vehicles(&f1, &f2, &cfg).with_context(|| {

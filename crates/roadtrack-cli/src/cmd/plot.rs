@@ -36,10 +36,15 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Axis::X, requires = "time_space")]
     pub axis: Axis,
     /// Frame rate for the times of a MOTChallenge tracks file, frames/s.
-    #[arg(long, default_value_t = 10.0, value_name = "FPS")]
+    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = crate::flags::positive)]
     pub fps: f64,
     /// Chart the columns of this CSV table instead (e.g. a sweep table).
-    #[arg(long, value_name = "F.csv", requires_all = ["x", "y"])]
+    #[arg(
+        long,
+        value_name = "F.csv",
+        requires_all = ["x", "y"],
+        conflicts_with_all = ["background", "time_space", "fps", "width", "height", "no_labels"]
+    )]
     pub series: Option<PathBuf>,
     /// Column for the x axis (with --series).
     #[arg(long, value_name = "COL", requires = "series")]
@@ -86,10 +91,6 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let Some(tracks_path) = &args.tracks else {
         bail!("give a tracks file, or --series F.csv");
     };
-    if !(args.fps.is_finite() && args.fps > 0.0) {
-        bail!("--fps must be positive, found {}", args.fps);
-    }
-    let points = read_track_points(tracks_path, args.fps)?;
     let config = PlotConfig {
         title: args.title.clone(),
         width_px: args.width,
@@ -97,6 +98,15 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         labels: !args.no_labels,
         ..PlotConfig::default()
     };
+    crate::flags::check_overrides(
+        config.validate(),
+        &[
+            ("width_px", "--width", true),
+            ("height_px", "--height", true),
+        ],
+        None,
+    )?;
+    let points = read_track_points(tracks_path, args.fps)?;
     if args.time_space {
         plot_time_space(&points, args.axis, &config, &args.output)?;
     } else {

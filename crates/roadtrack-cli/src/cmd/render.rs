@@ -43,21 +43,13 @@ pub struct Args {
     #[arg(long)]
     pub no_labels: bool,
     /// Label text height, px (default: frame height / 40, within 9–18).
-    #[arg(long, value_name = "PX")]
+    #[arg(long, value_name = "PX", value_parser = crate::flags::positive_f32)]
     pub label_size: Option<f32>,
     #[command(flatten)]
     pub frames: FrameArgs,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    let options = args.frames.options();
-    let frames = source::open(&args.input, &options)?;
-    let info = frames.info.clone();
-    let tracks = read_track_points(&args.tracks, info.fps)?;
-    let truth = match &args.truth {
-        Some(p) => Some(read_truth_points(p, info.fps)?),
-        None => None,
-    };
     let tracks_title = args
         .tracks
         .file_name()
@@ -70,7 +62,19 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         tracks_title: format!("tracks: {tracks_title}"),
         ..RenderConfig::default()
     };
-    config.validate()?;
+    crate::flags::check_overrides(
+        config.validate(),
+        &[("label_height_px", "--label-size", true)],
+        None,
+    )?;
+    let options = args.frames.options()?;
+    let frames = source::open(&args.input, &options)?;
+    let info = frames.info.clone();
+    let tracks = read_track_points(&args.tracks, info.fps)?;
+    let truth = match &args.truth {
+        Some(p) => Some(read_truth_points(p, info.fps)?),
+        None => None,
+    };
     ui.detail(format!(
         "{}: {}×{} px, {} fps; {} track points{}",
         args.input.display(),

@@ -32,7 +32,7 @@ pub struct Args {
     pub view: Option<ViewKind>,
     /// Frames to write [default: 300, or the config's; with --from-trajectories the
     /// file's whole time span].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: Option<u32>,
     /// Seed of every random draw (same seed → byte-identical folder).
     #[arg(long, default_value_t = 0, value_name = "N")]
@@ -41,7 +41,7 @@ pub struct Args {
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
     /// Frame rate, frames/s [default: 10].
-    #[arg(long, value_name = "FPS")]
+    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
     pub fps: Option<f64>,
     /// Image width, px [default: 640].
     #[arg(long, value_name = "PX")]
@@ -57,17 +57,17 @@ pub struct Args {
     #[arg(long, value_name = "F.csv", conflicts_with = "pairs")]
     pub from_trajectories: Option<PathBuf>,
     /// Write two-frame matching problems DT seconds apart instead of a sequence.
-    #[arg(long, value_name = "DT")]
+    #[arg(long, value_name = "DT", value_parser = crate::flags::positive)]
     pub pairs: Option<f64>,
     /// Number of problems (with --pairs).
-    #[arg(long, default_value_t = 20, value_name = "N", requires = "pairs")]
+    #[arg(long, default_value_t = 20, value_name = "N", requires = "pairs", value_parser = clap::value_parser!(u32).range(1..))]
     pub n_pairs: u32,
     /// Probability that a vehicle is missing from a frame, independently in each frame
     /// (with --pairs; seed 000's "about 10 % not extracted" is 0.1).
-    #[arg(long, default_value_t = 0.0, value_name = "F", requires = "pairs")]
+    #[arg(long, default_value_t = 0.0, value_name = "F", requires = "pairs", value_parser = crate::flags::unit_fraction)]
     pub drop: f64,
     /// Sd of the noise added to each vehicle centre, px (with --pairs).
-    #[arg(long, default_value_t = 0.0, value_name = "PX", requires = "pairs")]
+    #[arg(long, default_value_t = 0.0, value_name = "PX", requires = "pairs", value_parser = crate::flags::non_negative)]
     pub position_noise: f64,
 }
 
@@ -94,7 +94,16 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if let Some(f) = args.image_format {
         config.image_format = f;
     }
-    config.validate()?;
+    crate::flags::check_overrides(
+        config.validate(),
+        &[
+            ("frames", "--frames", args.frames.is_some()),
+            ("fps", "--fps", args.fps.is_some()),
+            ("width", "--width", args.width.is_some()),
+            ("width", "--height", args.height.is_some()),
+        ],
+        args.config.as_deref(),
+    )?;
     let out = &args.output;
 
     if let Some(dt) = args.pairs {

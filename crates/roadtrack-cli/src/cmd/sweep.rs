@@ -92,6 +92,10 @@ fn fmt_rate(r: &SweepRow) -> String {
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    crate::flags::reject_given(
+        &args.relax.weight_flags(),
+        "swept here: give its range with --grid-a, --grid-b or --grid-c",
+    )?;
     let cfg = args.relax.config()?;
     let def = SweepGrid::default();
     let grid = SweepGrid {

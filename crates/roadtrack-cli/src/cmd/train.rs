@@ -43,22 +43,22 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Preset::Person)]
     pub preset: Preset,
     /// Epochs (preset: person 30, vehicle 20).
-    #[arg(long)]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub epochs: Option<u32>,
     /// Batch size (preset: person 64, vehicle 32).
-    #[arg(long)]
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub batch_size: Option<usize>,
     /// Adam learning rate (preset: person 1e-3, vehicle 1e-4).
-    #[arg(long)]
+    #[arg(long, value_name = "R", value_parser = crate::flags::positive)]
     pub learning_rate: Option<f64>,
     /// Fraction of patches used for training; the rest tests (default 0.8).
-    #[arg(long)]
+    #[arg(long, value_name = "F", value_parser = crate::flags::open_fraction)]
     pub train_fraction: Option<f64>,
     /// Network input HEIGHTxWIDTH in px (preset: person 64x32, vehicle 32x48).
-    #[arg(long, value_name = "HxW")]
-    pub input_size: Option<String>,
+    #[arg(long, value_name = "HxW", value_parser = parse_size)]
+    pub input_size: Option<(usize, usize)>,
     /// Most positives drawn from a sequence (preset: person 900, vehicle 5000).
-    #[arg(long)]
+    #[arg(long, value_name = "N", requires = "sequence", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub max_positives: Option<usize>,
     /// Random seed (weights, shuffling, split, negatives).
     #[arg(long, default_value_t = 0)]
@@ -79,12 +79,16 @@ pub enum Preset {
     Vehicle,
 }
 
-#[cfg(feature = "cnn")]
-fn parse_size(s: &str) -> Result<(usize, usize)> {
-    let (h, w) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--input-size {s}: expected HEIGHTxWIDTH, e.g. 64x32"))?;
-    Ok((h.trim().parse()?, w.trim().parse()?))
+/// `--input-size HxW`: two positive integers.
+fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
+    let bad = || format!("expected HEIGHTxWIDTH in px, e.g. 64x32, found `{s}`");
+    let (h, w) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let h: usize = h.trim().parse().map_err(|_| bad())?;
+    let w: usize = w.trim().parse().map_err(|_| bad())?;
+    if h == 0 || w == 0 {
+        return Err(bad());
+    }
+    Ok((h, w))
 }
 
 /// Without the `cnn` feature there is no trainer: fail before reading any data.
@@ -113,12 +117,29 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if let Some(v) = args.max_positives {
         config.max_positives = v;
     }
-    if let Some(s) = &args.input_size {
-        let (h, w) = parse_size(s)?;
+    if let Some((h, w)) = args.input_size {
         config.input_height = h;
         config.input_width = w;
     }
-    config.validate()?;
+    crate::flags::check_overrides(
+        config.validate(),
+        &[
+            ("epochs", "--epochs", args.epochs.is_some()),
+            ("batch_size", "--batch-size", args.batch_size.is_some()),
+            (
+                "learning_rate",
+                "--learning-rate",
+                args.learning_rate.is_some(),
+            ),
+            (
+                "train_fraction",
+                "--train-fraction",
+                args.train_fraction.is_some(),
+            ),
+            ("input_height", "--input-size", args.input_size.is_some()),
+        ],
+        None,
+    )?;
 
     let patches = match (&args.positives, &args.negatives, &args.sequence) {
         (Some(p), Some(n), None) => {

@@ -179,18 +179,39 @@ fn read_lines(path: &Path) -> Result<String> {
 /// id and box (fields 1–6), then `row` makes the record from them and the fields after the
 /// box (`row(line, fields, frame, id, bbox)`). Rows come back sorted by (frame, id) with an
 /// id repeated within a frame rejected ([`sort_unique`]).
+///
+/// With `same_fields`, every line must have as many fields as the first (up to
+/// [`MAX_FIELDS`]): a line with a column cut out would otherwise be read with its later
+/// fields shifted.
 fn read_rows<T>(
     path: &Path,
+    same_fields: bool,
     row: impl Fn(u64, &[&str], u32, u64, BBox) -> Result<T>,
     key: impl Fn(&T) -> (u32, u64),
 ) -> Result<Vec<T>> {
     let text = read_lines(path)?;
     let mut out = Vec::new();
     let mut lines = Vec::new();
+    let mut first: Option<(u64, usize)> = None;
     for (i, l) in text.lines().enumerate() {
         let line = i as u64 + 1;
         let Some(f) = fields(l) else { continue };
         let f = f.as_slice();
+        match first {
+            None => first = Some((line, f.len())),
+            Some((first_line, n)) if same_fields && n != f.len() => {
+                return Err(Error::parse(
+                    path,
+                    line,
+                    (f.len().min(n) + 1).to_string(),
+                    format!(
+                        "{} fields, but line {first_line} has {n}; every line needs the same fields",
+                        f.len()
+                    ),
+                ));
+            }
+            Some(_) => {}
+        }
         let frame = frame_of(path, line, f)?;
         let id = id_of(path, line, f)?;
         let bbox = bbox_of(path, line, f)?;
@@ -200,15 +221,31 @@ fn read_rows<T>(
     sort_unique(path, out, lines, key)
 }
 
-/// Reads a MOTChallenge tracks file.
+/// Reads a MOTChallenge tracks file: 6 fields (frame to box), 7 (and `conf`) or 10 (and
+/// `x,y,z`), the same on every line.
 ///
 /// # Errors
-/// Names file, line and column of a missing or non-numeric field, a frame below 1, a
-/// negative id or size, and an id repeated within a frame.
+/// Names file, line and column of a missing or non-numeric field, a line with 8 or 9
+/// fields or with another count than the first line, a frame below 1, a negative id or
+/// size, and an id repeated within a frame.
 pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
     read_rows(
         path,
+        true,
         |line, f, frame, id, bbox| {
+            // Choice: `x,y,z` come as a triple, so 8 or 9 fields mean a column is missing.
+            if matches!(f.len(), 8 | 9) {
+                return Err(Error::parse(
+                    path,
+                    line,
+                    (f.len() + 1).to_string(),
+                    format!(
+                        "{} fields; MOTChallenge tracks have 10 \
+                         (frame,id,bb_left,bb_top,bb_width,bb_height,conf,x,y,z), 7 or 6",
+                        f.len()
+                    ),
+                ));
+            }
             let conf = if f.len() > 6 {
                 field_f64(path, line, f, 6, "conf")?
             } else {
@@ -232,8 +269,10 @@ pub fn read_tracks(path: &Path) -> Result<Vec<MotTrackRow>> {
 /// As [`read_tracks`], plus a class that is not a positive integer and a visibility outside
 /// `[0, 1]`.
 pub fn read_gt(path: &Path) -> Result<Vec<MotGtRow>> {
+    // Choice: ground truth keeps its per-line defaults for missing trailing fields.
     read_rows(
         path,
+        false,
         |line, f, frame, id, bbox| {
             let consider = if f.len() > 6 {
                 field_f64(path, line, f, 6, "consider")? != 0.0
@@ -534,6 +573,18 @@ mod tests {
     }
 
     #[test]
+    fn a_line_with_a_column_cut_out_is_rejected_by_line() {
+        // Column 3 (bb_left) cut from every line: 9 fields.
+        let (_d, p) = file("1,1,20,30,40,0.9,-1,-1,-1\n");
+        let m = read_tracks(&p).expect_err("9 fields").to_string();
+        assert!(m.contains(":1:") && m.contains("9 fields"), "{m}");
+        // Cut from the second line only.
+        let (_d, p) = file("1,1,10,20,30,40,0.9\n2,1,20,30,40,0.9\n");
+        let m = read_tracks(&p).expect_err("tracks").to_string();
+        assert!(m.contains(":2:") && m.contains("line 1 has 7"), "{m}");
+    }
+
+    #[test]
     fn extra_fields_and_float_integers_are_accepted() -> Result<()> {
         let (_d, p) = file("3.0,7.0,1,2,3,4,0.5,-1,-1,-1,9,9\n");
         let r = read_tracks(&p)?;
@@ -543,7 +594,7 @@ mod tests {
 
     #[test]
     fn fields_are_trimmed_like_str_trim() -> Result<()> {
-        let (_d, p) = file(" 1 ,\t2,3.5 , 4,\u{a0}5,6\u{a0}\r\n\n  \n1,3,0,0,1,1,1\n");
+        let (_d, p) = file(" 1 ,\t2,3.5 , 4,\u{a0}5,6\u{a0}\r\n\n  \n1,3,0,0,1,1\n");
         let r = read_tracks(&p)?;
         assert_eq!(r.len(), 2);
         assert_eq!((r[0].frame, r[0].id), (1, 2));

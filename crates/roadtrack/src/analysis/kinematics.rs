@@ -89,13 +89,12 @@ impl KinematicsConfig {
     /// # Errors
     /// A negative or NaN half window.
     pub fn validate(&self) -> Result<()> {
-        if self.half_window_s.is_nan() || self.half_window_s < 0.0 {
-            return Err(Error::config(
-                "KinematicsConfig",
-                "half_window_s",
-                "must be ≥ 0",
-            ));
-        }
+        crate::error::check_range(
+            "KinematicsConfig",
+            "half_window_s",
+            self.half_window_s,
+            0.0..,
+        )?;
         Ok(())
     }
 }

@@ -34,8 +34,10 @@ pub struct CountLine {
     /// Name used in the outputs.
     pub name: String,
     /// First end.
+    #[serde(deserialize_with = "crate::config::exact::array")]
     pub a: [f64; 2],
     /// Second end.
+    #[serde(deserialize_with = "crate::config::exact::array")]
     pub b: [f64; 2],
 }
 
@@ -46,6 +48,7 @@ pub struct Zone {
     /// Name used in the outputs.
     pub name: String,
     /// Vertices in order (at least 3).
+    #[serde(deserialize_with = "crate::config::exact::vec_of_arrays")]
     pub polygon: Vec<[f64; 2]>,
 }
 
@@ -86,19 +89,50 @@ pub struct Site {
     pub stitch: StitchConfig,
 }
 
+impl crate::config::Validate for Site {
+    fn validate(&self) -> crate::error::Result<()> {
+        Site::validate(self)
+    }
+}
+
 impl Site {
-    /// Checks the geometry.
+    /// Checks the geometry: finite coordinates (NaN would count crossings everywhere), zones
+    /// with 3 or more vertices, lines of non-zero length, stitching limits ≥ 0.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] naming the table (`line`, `zone`, `lane`, `stitch`) and the
+    /// item by its name.
     pub fn validate(&self) -> Result<()> {
-        for z in self.zone.iter().chain(&self.lane) {
-            if z.polygon.len() < 3 {
-                return Err(Error::config(
-                    "Site",
-                    "zone",
-                    format!("`{}` needs at least 3 vertices", z.name),
-                ));
+        let finite = |p: &[f64; 2]| p.iter().all(|v| v.is_finite());
+        for (table, zones) in [("zone", &self.zone), ("lane", &self.lane)] {
+            for z in zones {
+                if z.polygon.len() < 3 {
+                    return Err(Error::config(
+                        "Site",
+                        table,
+                        format!("`{}` needs at least 3 vertices", z.name),
+                    ));
+                }
+                if let Some(p) = z.polygon.iter().find(|p| !finite(p)) {
+                    return Err(Error::config(
+                        "Site",
+                        table,
+                        format!("`{}` has a non-finite vertex {p:?}", z.name),
+                    ));
+                }
             }
         }
         for l in &self.line {
+            if !(finite(&l.a) && finite(&l.b)) {
+                return Err(Error::config(
+                    "Site",
+                    "line",
+                    format!(
+                        "`{}` has a non-finite end (a = {:?}, b = {:?})",
+                        l.name, l.a, l.b
+                    ),
+                ));
+            }
             if l.a == l.b {
                 return Err(Error::config(
                     "Site",
@@ -107,17 +141,13 @@ impl Site {
                 ));
             }
         }
-        if self.stitch.max_gap_s.is_nan()
-            || self.stitch.max_gap_s < 0.0
-            || self.stitch.max_distance.is_nan()
-            || self.stitch.max_distance < 0.0
-        {
-            return Err(Error::config(
-                "Site",
-                "stitch",
-                "max_gap_s and max_distance must be ≥ 0",
-            ));
-        }
+        crate::error::check_range("Site", "stitch.max_gap_s", self.stitch.max_gap_s, 0.0..)?;
+        crate::error::check_range(
+            "Site",
+            "stitch.max_distance",
+            self.stitch.max_distance,
+            0.0..,
+        )?;
         Ok(())
     }
 }

@@ -20,11 +20,19 @@ pub struct BackgroundDetectorConfig {
     pub regions: RegionConfig,
 }
 
+impl crate::config::Validate for BackgroundDetectorConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        BackgroundDetectorConfig::validate(self)
+    }
+}
+
 impl BackgroundDetectorConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<()> {
-        self.background.validate()?;
-        self.regions.validate()
+        self.background
+            .validate()
+            .map_err(|e| e.in_table("background"))?;
+        self.regions.validate().map_err(|e| e.in_table("regions"))
     }
 }
 

@@ -73,19 +73,26 @@ impl BackgroundConfig {
         };
         unit(self.learning_rate, "learning_rate")?;
         unit(self.foreground_learning_rate, "foreground_learning_rate")?;
-        if self.threshold_sigma.is_nan() || self.threshold_sigma <= 0.0 {
+        if !(self.threshold_sigma.is_finite() && self.threshold_sigma > 0.0) {
             return Err(Error::config(
                 "BackgroundConfig",
                 "threshold_sigma",
                 "must be positive",
             ));
         }
-        if !(self.min_sigma > 0.0 && self.max_sigma >= self.min_sigma) {
+        if !(self.min_sigma.is_finite() && self.min_sigma > 0.0) {
             return Err(Error::config(
                 "BackgroundConfig",
                 "min_sigma",
+                format!("must be finite and > 0, found {}", self.min_sigma),
+            ));
+        }
+        if !(self.max_sigma.is_finite() && self.max_sigma >= self.min_sigma) {
+            return Err(Error::config(
+                "BackgroundConfig",
+                "max_sigma",
                 format!(
-                    "need 0 < min_sigma ≤ max_sigma, found {} and {}",
+                    "must be finite and ≥ min_sigma {}, found {}",
                     self.min_sigma, self.max_sigma
                 ),
             ));

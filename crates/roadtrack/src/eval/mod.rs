@@ -127,6 +127,12 @@ impl Default for EvalConfig {
     }
 }
 
+impl crate::config::Validate for EvalConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        EvalConfig::validate(self)
+    }
+}
+
 impl EvalConfig {
     /// Checks ranges.
     ///

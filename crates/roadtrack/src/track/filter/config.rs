@@ -195,14 +195,25 @@ impl Default for FilterTrackConfig {
     }
 }
 
+impl crate::config::Validate for FilterTrackConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        FilterTrackConfig::validate(self)
+    }
+}
+
 impl FilterTrackConfig {
     /// Checks every range, nested configs included.
     pub fn validate(&self) -> Result<()> {
         let c = "FilterTrackConfig";
-        self.detector.validate()?;
-        self.pf.validate()?;
-        self.phd.validate()?;
-        self.likelihood.colour((32.0, 32.0)).validate()?;
+        self.detector
+            .validate()
+            .map_err(|e| e.in_table("detector"))?;
+        self.pf.validate().map_err(|e| e.in_table("pf"))?;
+        self.phd.validate().map_err(|e| e.in_table("phd"))?;
+        self.likelihood
+            .colour((32.0, 32.0))
+            .validate()
+            .map_err(|e| e.in_table("likelihood"))?;
         let l = &self.likelihood;
         if !(l.window_scale.is_finite() && l.window_scale > 0.0) {
             return Err(Error::config(c, "likelihood.window_scale", "must be > 0"));

@@ -90,6 +90,12 @@ impl Default for PointFilterConfig {
     }
 }
 
+impl crate::config::Validate for PointFilterConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        PointFilterConfig::validate(self)
+    }
+}
+
 impl PointFilterConfig {
     /// Checks every range (the PHD core checks the rest).
     pub fn validate(&self) -> Result<()> {

@@ -152,6 +152,12 @@ impl Default for MrfConfig {
     }
 }
 
+impl crate::config::Validate for MrfConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        MrfConfig::validate(self)
+    }
+}
+
 impl MrfConfig {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<()> {
@@ -210,7 +216,9 @@ impl MrfConfig {
         if self.birth_min_blocks == 0 {
             return err("birth_min_blocks", "must be at least 1".into());
         }
-        self.background.validate()
+        self.background
+            .validate()
+            .map_err(|e| e.in_table("background"))
     }
 }
 

@@ -224,6 +224,12 @@ impl Default for RelaxationConfig {
     }
 }
 
+impl crate::config::Validate for RelaxationConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        RelaxationConfig::validate(self)
+    }
+}
+
 impl RelaxationConfig {
     /// Checks every field: weights finite and non-negative, lengths finite and
     /// non-negative, `epsilon` finite and non-negative.

@@ -68,13 +68,21 @@ impl Default for RelaxationTrackerConfig {
     }
 }
 
+impl crate::config::Validate for RelaxationTrackerConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        RelaxationTrackerConfig::validate(self)
+    }
+}
+
 impl RelaxationTrackerConfig {
     /// Checks every field.
     ///
     /// # Errors
     /// [`crate::Error::InvalidConfig`] naming the field.
     pub fn validate(&self) -> Result<()> {
-        self.relaxation.validate()?;
+        self.relaxation
+            .validate()
+            .map_err(|e| e.in_table("relaxation"))?;
         for (name, v) in [
             ("rematch_gate_px", self.rematch_gate_px),
             ("rematch_box_fraction", self.rematch_box_fraction),

@@ -124,6 +124,12 @@ impl Default for PhdConfig {
     }
 }
 
+impl crate::config::Validate for PhdConfig {
+    fn validate(&self) -> crate::error::Result<()> {
+        PhdConfig::validate(self)
+    }
+}
+
 impl PhdConfig {
     /// Checks every range.
     pub fn validate(&self) -> Result<()> {
