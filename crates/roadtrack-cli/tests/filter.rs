@@ -151,8 +151,12 @@ fn bad_region_and_bad_input_are_reported() {
         &out,
         &["--detection-prob", "1.5"],
     );
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("detection_prob"), "{}", stderr(&o));
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "a bad flag value is a usage error"
+    );
+    assert!(stderr(&o).contains("--detection-prob"), "{}", stderr(&o));
     let bad = d.path().join("m.csv");
     std::fs::write(&bad, "step,x,y\n1,2,3\n2,x,4\n").expect("write");
     let o = filter(&bad, &out, &[]);

@@ -303,14 +303,14 @@ fn match_flags_override_the_config_and_bad_values_are_errors() {
         "colour-bidirectional",
     ]);
     assert_eq!(pairs(&all), pairs(&truth), "{all}");
-    // A negative weight is a bad input (exit 1) naming the field.
+    // A negative weight is a usage error (exit 2) naming the flag.
     let o = run(bin()
         .arg("match")
         .arg(p.join("frame1.csv"))
         .arg(p.join("frame2.csv"))
         .args(["--own-weight=-1", "-o", "-"]));
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("own_weight"), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--own-weight"), "{}", stderr(&o));
     // A missing file names the file.
     let o = run(bin().args(["match", "nope1.csv", "nope2.csv", "-o", "-"]));
     assert_eq!(o.status.code(), Some(1));
