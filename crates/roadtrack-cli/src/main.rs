@@ -62,9 +62,34 @@ fn remove_outputs_on_signals() {
 #[cfg(not(unix))]
 fn remove_outputs_on_signals() {}
 
+/// The command line, with every flag's value allowed to be a negative number.
+///
+/// Choice: so that `--fps -5` reaches the flag's value parser and is reported as a bad
+/// value of `--fps` (exit 2), not as an unknown argument `-5`.
+fn command() -> clap::Command {
+    let mut cmd = Cli::command();
+    let subcommands: Vec<String> = cmd
+        .get_subcommands()
+        .map(|s| s.get_name().to_owned())
+        .collect();
+    for name in subcommands {
+        cmd = cmd.mut_subcommand(name, |sub| {
+            let ids: Vec<clap::Id> = sub
+                .get_arguments()
+                .filter(|a| !a.is_positional() && a.get_action().takes_values())
+                .map(|a| a.get_id().clone())
+                .collect();
+            ids.into_iter().fold(sub, |sub, id| {
+                sub.mut_arg(id, |a| a.allow_negative_numbers(true))
+            })
+        });
+    }
+    cmd
+}
+
 fn main() -> ExitCode {
     remove_outputs_on_signals();
-    let matches = Cli::command().get_matches();
+    let matches = command().get_matches();
     let subcommand = matches.subcommand_name().unwrap_or_default().to_owned();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let ui = common::Ui::new(cli.quiet, cli.verbose);

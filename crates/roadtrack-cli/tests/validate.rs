@@ -330,6 +330,15 @@ fn bad_flag_values_are_usage_errors_naming_the_flag() {
         vec!["detect", seq, "--end", "0"],
         vec!["detect", seq, "--fps", "nan"],
         vec!["detect", seq, "--fps=-5"],
+        vec!["detect", seq, "--fps", "-5"],
+        vec![
+            "analyze",
+            "t.txt",
+            "--calibration",
+            "c.toml",
+            "--smooth-s",
+            "-0.5",
+        ],
         vec!["detect", seq, "--threshold-sigma", "0"],
         vec!["track", seq, "--method", "pf", "--window-scale", "inf"],
         vec![
@@ -368,6 +377,15 @@ fn bad_flag_values_are_usage_errors_naming_the_flag() {
             "t.txt",
             "--num-frames",
             "0",
+        ],
+        vec![
+            "evaluate",
+            "--truth",
+            seq,
+            "--tracks",
+            "t.txt",
+            "--class-list",
+            "1,0",
         ],
         vec![
             "evaluate",

@@ -72,7 +72,7 @@ pub struct Args {
     #[arg(long, value_enum, value_name = "MODE")]
     pub classes: Option<ClassMode>,
     /// MOT17 class numbers evaluated in per-class and agnostic modes (default 1,3,4,5,6).
-    #[arg(long, value_delimiter = ',', value_name = "C,C,…")]
+    #[arg(long, value_delimiter = ',', value_name = "C,C,…", value_parser = clap::value_parser!(u32).range(1..))]
     pub class_list: Option<Vec<u32>>,
     /// Skip MOTChallenge preprocessing (TrackEval DO_PREPROC = False).
     #[arg(long)]
