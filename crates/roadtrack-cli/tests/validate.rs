@@ -558,6 +558,16 @@ fn bad_config_values_name_the_file_and_the_key() {
             "bad.toml: measurement_sigma",
         ),
         (
+            vec!["filter", "m.csv"],
+            "merge_distance_sigmas = -1.0\n",
+            "bad.toml: merge_distance_sigmas",
+        ),
+        (
+            vec!["filter", "m.csv"],
+            "process_sigma = nan\n",
+            "bad.toml: process_sigma",
+        ),
+        (
             vec!["simulate", "-o", "x"],
             "[road]\nlength_m = nan\n",
             "bad.toml: road.length_m",

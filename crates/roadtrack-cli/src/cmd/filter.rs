@@ -133,9 +133,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         ("clutter_rate", "--clutter-rate"),
         ("birth_rate", "--birth-rate"),
         ("measurement_sigma", "--measurement-sigma"),
-        ("motion", "--process-sigma"),
-        ("particles_per_object", "--particles-per-target"),
-        ("max_particles", "--particles-per-target"),
+        ("process_sigma", "--process-sigma"),
+        ("particles_per_target", "--particles-per-target"),
         ("birth_speed_sigma", "--birth-speed-sigma"),
         ("region", "--region"),
     ];

@@ -132,7 +132,21 @@ impl PointFilterConfig {
                 "must be ≥ 1",
             ));
         }
-        self.phd_config().validate()
+        // The PHD filter's fields derive from these: name the one the file spells.
+        self.phd_config().validate().map_err(|e| match e {
+            Error::InvalidConfig { field, reason, .. } => {
+                let field = match field.as_str() {
+                    "particles_per_object" | "max_particles" => "particles_per_target",
+                    "motion" => "process_sigma",
+                    "merge_distance" => "merge_distance_sigmas",
+                    "split_distance" => "split_distance_sigmas",
+                    "mesh_cell" => "mesh_cell_sigmas",
+                    other => other,
+                };
+                Error::config(c, field.to_owned(), reason)
+            }
+            other => other,
+        })
     }
 
     /// The PHD core's configuration for these settings.
