@@ -7,7 +7,7 @@ use std::path::Path;
 /// Reads `path` as TOML into `T` (any `XxxConfig`: fields left out keep their defaults,
 /// unknown fields are an error naming line and column).
 pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     toml::from_str(&text).map_err(|e| Error::Toml {
         path: path.to_owned(),
         message: e.to_string().trim_end().to_owned(),
