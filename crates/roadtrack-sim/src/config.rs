@@ -720,10 +720,11 @@ impl SimConfig {
             "widths must be positive",
         )?;
         check(
-            i.arm_length_m > 4.0 * i.lane_width_m + i.crosswalk_width_m + 20.0,
+            i.arm_length_m.is_finite()
+                && i.arm_length_m > 4.0 * i.lane_width_m + i.crosswalk_width_m + 20.0,
             I,
             "arm_length_m",
-            "too short for the lanes and crosswalk",
+            "must be finite and long enough for the lanes and crosswalk",
         )?;
         check(
             nonneg(i.inflow_veh_per_h_per_approach),
@@ -771,10 +772,10 @@ impl SimConfig {
             "widths must be positive",
         )?;
         check(
-            c.half_length_m > c.crosswalk_width_m + 20.0,
+            c.half_length_m.is_finite() && c.half_length_m > c.crosswalk_width_m + 20.0,
             X,
             "half_length_m",
-            "too short for the crosswalk",
+            "must be finite and long enough for the crosswalk",
         )?;
         check(
             nonneg(c.inflow_veh_per_h_per_direction)
@@ -846,6 +847,7 @@ impl SimConfig {
             pos(v.time_headway_s)
                 && pos(v.min_gap_m)
                 && pos(v.comfort_decel_mps2)
+                && v.max_decel_mps2.is_finite()
                 && v.max_decel_mps2 >= v.comfort_decel_mps2,
             V,
             "time_headway_s",
@@ -910,6 +912,12 @@ impl SimConfig {
             "SimRenderConfig",
             "noise_sd",
             "noise, drift (< 0.5), period, jitter and sun elevation (0, 90] out of range",
+        )?;
+        check(
+            r.sun_azimuth_deg.is_finite(),
+            "SimRenderConfig",
+            "sun_azimuth_deg",
+            "must be finite",
         )?;
         let d = &self.detections;
         check(

@@ -73,14 +73,15 @@ impl BackgroundConfig {
         };
         unit(self.learning_rate, "learning_rate")?;
         unit(self.foreground_learning_rate, "foreground_learning_rate")?;
-        if self.threshold_sigma.is_nan() || self.threshold_sigma <= 0.0 {
+        if !self.threshold_sigma.is_finite() || self.threshold_sigma <= 0.0 {
             return Err(Error::config(
                 "BackgroundConfig",
                 "threshold_sigma",
-                "must be positive",
+                "must be finite and positive",
             ));
         }
-        if !(self.min_sigma > 0.0 && self.max_sigma >= self.min_sigma) {
+        if !(self.min_sigma > 0.0 && self.max_sigma >= self.min_sigma && self.max_sigma.is_finite())
+        {
             return Err(Error::config(
                 "BackgroundConfig",
                 "min_sigma",
