@@ -30,22 +30,22 @@ use serde::de::DeserializeOwned;
 use std::fmt::Debug;
 use std::path::Path;
 
-/// The dotted paths of the non-finite floats in `value`.
+/// The dotted paths (`line.0.a.1`) of the non-finite floats in `value`.
 fn non_finite(value: &toml::Value, at: &str, out: &mut Vec<String>) {
+    let join = |k: &str| {
+        if at.is_empty() {
+            k.to_owned()
+        } else {
+            format!("{at}.{k}")
+        }
+    };
     match value {
         toml::Value::Float(x) if !x.is_finite() => out.push(format!("{at} = {x}")),
         toml::Value::Array(a) => a
             .iter()
             .enumerate()
-            .for_each(|(i, v)| non_finite(v, &format!("{at}[{i}]"), out)),
-        toml::Value::Table(t) => t.iter().for_each(|(k, v)| {
-            let at = if at.is_empty() {
-                k.clone()
-            } else {
-                format!("{at}.{k}")
-            };
-            non_finite(v, &at, out)
-        }),
+            .for_each(|(i, v)| non_finite(v, &join(&i.to_string()), out)),
+        toml::Value::Table(t) => t.iter().for_each(|(k, v)| non_finite(v, &join(k), out)),
         _ => {}
     }
 }
@@ -359,21 +359,30 @@ fn fuzz_sim_config() {
     sim(2000);
 }
 
-/// The deep run: 100 × the cases of every config above.
-#[test]
-#[ignore = "deep fuzzing, minutes; run with --ignored"]
-fn fuzz_configs_deep() {
-    relaxation(2000 * DEEP);
-    relaxation_tracker(2000 * DEEP);
-    mrf(2000 * DEEP);
-    filter_track(3000 * DEEP);
-    phd(2000 * DEEP);
-    particle(2000 * DEEP);
-    point_filter(2000 * DEEP);
-    background(2000 * DEEP);
-    eval(2000 * DEEP);
-    site(2000 * DEEP);
-    sim(2000 * DEEP);
+/// The deep runs: 100 × the cases of each config above, one `#[ignore]`d test per config
+/// (so they run in parallel and one at a time).
+macro_rules! deep {
+    ($($test:ident: $fuzz:ident($cases:expr)),* $(,)?) => {$(
+        #[test]
+        #[ignore = "deep fuzzing, minutes; run with --ignored"]
+        fn $test() {
+            $fuzz($cases * DEEP);
+        }
+    )*};
+}
+
+deep! {
+    deep_relaxation_config: relaxation(2000),
+    deep_relaxation_tracker_config: relaxation_tracker(2000),
+    deep_mrf_config: mrf(2000),
+    deep_filter_track_config: filter_track(3000),
+    deep_phd_config: phd(2000),
+    deep_particle_filter_config: particle(2000),
+    deep_point_filter_config: point_filter(2000),
+    deep_background_detector_config: background(2000),
+    deep_eval_config: eval(2000),
+    deep_site_zones: site(2000),
+    deep_sim_config: sim(2000),
 }
 
 /// The configs the fuzz tests above found wrongly accepted (each the smallest file with
