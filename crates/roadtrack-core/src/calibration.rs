@@ -487,7 +487,7 @@ impl Calibration {
     /// # Errors
     /// As [`Calibration::from_toml_str`], plus I/O errors.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         Self::from_toml_str(&text, path)
     }
 

@@ -29,7 +29,7 @@ pub fn load_toml<T: DeserializeOwned + Validate>(path: &Path) -> Result<T> {
 /// Reads `path` as TOML into `T` without validating it (for callers that check the values
 /// themselves, naming the file).
 pub fn parse_toml<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     toml::from_str(&text).map_err(|e| Error::Toml {
         path: path.to_owned(),
         message: e.to_string().trim_end().to_owned(),

@@ -936,6 +936,12 @@ impl SimConfig {
             "noise_sd",
             "noise, drift (< 0.5), period, jitter and sun elevation (0, 90] out of range",
         )?;
+        check(
+            r.sun_azimuth_deg.is_finite(),
+            "SimRenderConfig",
+            "sun_azimuth_deg",
+            "must be finite",
+        )?;
         let d = &self.detections;
         check(
             prob(d.miss_prob)

@@ -77,6 +77,27 @@ pub fn read_truth_points(path: &Path, fps: f64) -> Result<Vec<TrackPoint>> {
         .collect())
 }
 
+/// Reads `path` as UTF-8 text.
+///
+/// # Errors
+/// [`crate::Error::Io`] when the file cannot be read; [`crate::Error::Parse`] naming the
+/// line of the first byte that is not UTF-8 (the file was read: an I/O error would wrongly
+/// say it cannot be accessed).
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        let line = bytes[..at].iter().filter(|&&b| b == b'\n').count() as u64 + 1;
+        crate::Error::parse(
+            path,
+            line,
+            "-",
+            format!("not UTF-8 text (byte 0x{:02x} at offset {at})", bytes[at]),
+        )
+    })
+}
+
 fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension()
         .and_then(|e| e.to_str())

@@ -172,7 +172,7 @@ fn bbox_of(path: &Path, line: u64, f: &[&str]) -> Result<BBox> {
 }
 
 fn read_lines(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+    super::read_text(path)
 }
 
 /// The reader behind [`read_tracks`] and [`read_gt`]: for every non-blank line, its frame,

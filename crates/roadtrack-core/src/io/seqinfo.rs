@@ -25,10 +25,11 @@ pub struct SeqInfo {
 
 impl SeqInfo {
     /// Reads `path` (a `seqinfo.ini`). Keys are matched case-insensitively; `name`,
-    /// `imDir` and `imExt` default to the folder name, `img1` and `.jpg`; `frameRate`,
-    /// `seqLength`, `imWidth` and `imHeight` are required.
+    /// `imDir` and `imExt` default to the folder name, `img1` and `.jpg`; `frameRate`
+    /// (positive) and the whole numbers `seqLength`, `imWidth` and `imHeight` (≥ 1) are
+    /// required.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = super::read_text(path)?;
         let mut kv = std::collections::HashMap::new();
         for (i, raw) in text.lines().enumerate() {
             let line = raw.trim();
@@ -47,6 +48,27 @@ impl SeqInfo {
                 k.trim().to_ascii_lowercase(),
                 (i as u64 + 1, v.trim().to_owned()),
             );
+        }
+        // Counts and sizes are whole numbers: `0.5` is positive but would become 0 frames
+        // or pixels.
+        for (k, key_name) in [
+            ("seqlength", "seqLength"),
+            ("imwidth", "imWidth"),
+            ("imheight", "imHeight"),
+        ] {
+            if let Some((line, v)) = kv.get(k)
+                && let Ok(x) = v.parse::<f64>()
+                && x.is_finite()
+                && x > 0.0
+                && (x.fract() != 0.0 || x > f64::from(u32::MAX))
+            {
+                return Err(Error::parse(
+                    path,
+                    *line,
+                    key_name,
+                    format!("must be a whole number, found {v}"),
+                ));
+            }
         }
         let text_of = |k: &str, default: &str| {
             kv.get(k)
