@@ -2,7 +2,7 @@
 //! of the default config (and of the committed `configs/*.toml`) plus raw bytes (see
 //! `fuzzkit`).
 //!
-//! Loading with [`load_toml`] must not panic and must return the config or an error naming
+//! Parsing with [`parse_toml`] must not panic and must return the config or an error naming
 //! the file ([`Error::Toml`], or [`Error::Parse`] for text that is not UTF-8); `validate()`
 //! must not panic, may only fail with [`Error::InvalidConfig`], and must reject NaN and ±∞
 //! in every float field (except [`PHD_EXIT_SPEED`], where ∞ is a documented value, and the
@@ -15,7 +15,7 @@ mod fuzzkit;
 
 use fuzzkit::{DEEP, Syntax, run};
 use roadtrack::analysis::Site;
-use roadtrack::config::{load_toml, to_toml};
+use roadtrack::config::{parse_toml, to_toml};
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::eval::EvalConfig;
 use roadtrack::track::filter::{
@@ -67,7 +67,7 @@ fn fuzz_config<T: DeserializeOwned + Serialize + Default + Debug>(
     let path = dir.path().join("config.toml");
     run(name, cases, &all, Syntax::Toml, |bytes| {
         fuzzkit::write_case(&path, bytes)?;
-        let config: T = match load_toml(&path) {
+        let config: T = match parse_toml(&path) {
             Ok(c) => c,
             Err(Error::Toml { path: p, .. }) if p == path => return Ok(()),
             Err(Error::Parse { path: p, line, .. }) if p == path && line >= 1 => return Ok(()),
@@ -399,28 +399,28 @@ fn regressions() {
     let sim = |c: &SimConfig| c.validate();
     assert_eq!(
         rejected("[render]\nsun_azimuth_deg = nan\n", sim),
-        "sun_azimuth_deg"
+        "render.sun_azimuth_deg"
     );
     assert_eq!(
         rejected("[intersection]\narm_length_m = inf\n", sim),
-        "arm_length_m"
+        "intersection.arm_length_m"
     );
     assert_eq!(
         rejected("[crossing]\nhalf_length_m = inf\n", sim),
-        "half_length_m"
+        "crossing.half_length_m"
     );
     assert_eq!(
         rejected("[vehicles]\nmax_decel_mps2 = inf\n", sim),
-        "time_headway_s"
+        "vehicles.time_headway_s"
     );
     let mrf = |c: &MrfConfig| c.validate();
     assert_eq!(
         rejected("[background]\nthreshold_sigma = inf\n", mrf),
-        "threshold_sigma"
+        "background.threshold_sigma"
     );
     let detector = |c: &BackgroundDetectorConfig| c.validate();
     assert_eq!(
         rejected("[background]\nmax_sigma = inf\n", detector),
-        "min_sigma"
+        "background.max_sigma"
     );
 }
