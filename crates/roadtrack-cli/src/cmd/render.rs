@@ -1,6 +1,6 @@
 //! `roadtrack render`: boxes, ids, class colours and fading trails over the frames.
 
-use crate::common::{FrameArgs, Ui};
+use crate::common::{FrameArgs, Ui, report_skipped};
 use crate::overlay::OverlaySink;
 use anyhow::{Context, Result};
 use roadtrack::io::{read_track_points, read_truth_points, sink, source};
@@ -31,7 +31,7 @@ pub struct Args {
     pub truth: Option<PathBuf>,
     /// Output: a name ending in .mp4, .mkv, .avi or .webm writes a video (needs the ffmpeg
     /// program); anything else is a folder that receives NNNNNN.png per frame.
-    #[arg(short, long, value_name = "OUT")]
+    #[arg(short, long, value_name = "OUT", value_parser = crate::common::frames_output)]
     pub output: PathBuf,
     /// Trail length in frames (0 for no trails).
     #[arg(long, default_value_t = 30, value_name = "N")]
@@ -52,6 +52,7 @@ pub struct Args {
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let options = args.frames.options();
     let frames = source::open(&args.input, &options)?;
+    let skipped = frames.skip_log();
     let info = frames.info.clone();
     let tracks = read_track_points(&args.tracks, info.fps)?;
     let truth = match &args.truth {
@@ -99,5 +100,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         overlay.frames,
         args.output.display()
     ));
+    report_skipped(
+        ui,
+        options.on_bad_frame,
+        &args.input,
+        &skipped,
+        Some(&args.output),
+    )?;
     Ok(())
 }
