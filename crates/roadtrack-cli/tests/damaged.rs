@@ -262,6 +262,23 @@ fn a_video_cut_short_fails_or_warns_with_the_frames_it_announced() {
     let v = sidecar(&dir.path().join("det.csv.skipped.json"));
     assert_eq!(v["skipped_count"], 792);
     assert_eq!(skipped_frames(&v).first(), Some(&4));
+    // bench's decode stage reads its --video the same way.
+    for (policy, code) in [("fail", 1), ("skip", 0)] {
+        let o = bin()
+            .current_dir(dir.path())
+            .args([
+                "bench", "--video", "cut.avi", "--stages", "decode", "--frames", "2",
+            ])
+            .args(["--on-bad-frame", policy])
+            .output()
+            .expect("bench");
+        assert_eq!(o.status.code(), Some(code), "{policy}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("video ended at frame 3 of 795"),
+            "{policy}: {}",
+            stderr(&o)
+        );
+    }
 }
 
 /// Runs `roadtrack ARGS` in `dir` and checks it is a usage error about standard output
