@@ -115,6 +115,32 @@ fn a_deleted_frame_of_a_numbered_folder_is_a_gap_not_a_renumbering() {
 }
 
 #[test]
+fn a_rendered_video_holds_the_frame_before_a_skipped_one_so_time_is_kept() {
+    if !roadtrack::io::video::ffmpeg_available() {
+        eprintln!("note: ffmpeg missing; skipped");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let frames = tiny_copy(dir.path());
+    std::fs::remove_file(frames.join("frame4.png")).expect("rm");
+    std::fs::remove_file(frames.join("frame5.png")).expect("rm");
+    let o = render(
+        dir.path(),
+        &frames,
+        "o.mp4",
+        &["-q", "--on-bad-frame", "skip"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let src = roadtrack::io::source::open(&dir.path().join("o.mp4"), &Default::default())
+        .expect("open video");
+    assert_eq!(src.count(), 10, "10 frames long, as the source");
+    assert_eq!(
+        skipped_frames(&sidecar(&dir.path().join("o.mp4.skipped.json"))),
+        [4, 5]
+    );
+}
+
+#[test]
 fn a_missing_frame_of_a_simulated_sequence_fails_detect_and_is_skipped_on_request() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");

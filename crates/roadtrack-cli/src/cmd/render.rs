@@ -85,8 +85,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     ));
     // Choice: with --step k the video plays at fps / k, so it runs in real time.
     let video_fps = info.fps / f64::from(options.step);
-    let out = sink::open_sink(&args.output, video_fps)
+    let mut out = sink::open_sink(&args.output, video_fps)
         .with_context(|| format!("opening output {}", args.output.display()))?;
+    if options.on_bad_frame == roadtrack::io::OnBadFrame::Skip && sink::is_video_path(&args.output)
+    {
+        // A skipped frame keeps its time in a video: the frame before it is held.
+        out = Box::new(sink::HoldOverGaps::new(out, options.step));
+    }
     let total = info.selected_frames.map(u64::from);
     let bar = ui.progress(total, "render");
     let mut overlay = OverlaySink::new(&config, truth.as_deref(), out)?;
