@@ -163,3 +163,40 @@ fn a_video_cut_short_says_so_or_skips_the_frames_it_announced() -> roadtrack::Re
     assert_eq!(skipped, (5..=99).step_by(2).collect::<Vec<u32>>());
     Ok(())
 }
+
+#[test]
+fn a_cut_video_without_a_frame_count_is_judged_by_its_duration() -> roadtrack::Result<()> {
+    if !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    let p = dir.path().join("noise.mkv");
+    // Matroska states a duration but no frame count. Noise keeps every frame large, so
+    // cutting the file cuts frames.
+    let mut writer = video::VideoWriter::create(&p, 64, 48, 10.0)?;
+    let mut state = 12345u32;
+    for i in 1..=30 {
+        let img = image::RgbImage::from_fn(64, 48, |_, _| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let v = (state >> 24) as u8;
+            image::Rgb([v, v, v])
+        });
+        writer.write_frame(i, &img)?;
+    }
+    writer.finish()?;
+    let whole: Vec<_> = source::open(&p, &SourceOptions::default())?.collect();
+    assert_eq!(whole.len(), 30);
+    assert!(
+        whole.iter().all(|f| f.is_ok()),
+        "the whole file is not cut short"
+    );
+    let bytes = std::fs::read(&p).map_err(|e| roadtrack::Error::io(&p, e))?;
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).map_err(|e| roadtrack::Error::io(&p, e))?;
+    let m = source::open(&p, &SourceOptions::default())?
+        .find_map(|f| f.err())
+        .expect("cut short")
+        .to_string();
+    assert!(m.contains("noise.mkv") && m.contains("announced"), "{m}");
+    Ok(())
+}
