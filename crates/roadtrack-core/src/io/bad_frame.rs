@@ -89,9 +89,15 @@ impl SkipLog {
 
 /// The sidecar that lists the skipped frames of a run writing `output`:
 /// `<output>.skipped.json` beside it (`frames/` → `frames.skipped.json`); `None` for `-`
-/// (standard output), whose run reports them on standard error only.
+/// (standard output) and for a device or FIFO (`/dev/null`: no file is made beside it),
+/// whose runs report them on standard error only.
 pub fn sidecar_path(output: &Path) -> Option<PathBuf> {
     if output.as_os_str() == "-" {
+        return None;
+    }
+    // Choice: the sidecar goes beside regular files and folders only; metadata follows
+    // symbolic links, and a path that does not exist yet will be a regular file or folder.
+    if std::fs::metadata(output).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
         return None;
     }
     // Drops a trailing `/` so a folder's sidecar lies beside it, not in it.
@@ -319,5 +325,7 @@ mod tests {
             Some(PathBuf::from("out/frames.skipped.json"))
         );
         assert_eq!(sidecar_path(Path::new("-")), None);
+        #[cfg(unix)]
+        assert_eq!(sidecar_path(Path::new("/dev/null")), None);
     }
 }
