@@ -3,7 +3,8 @@
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use roadtrack::io::SourceOptions;
-use std::path::Path;
+use roadtrack::io::bad_frame::{self, OnBadFrame, SkipLog};
+use std::path::{Path, PathBuf};
 
 /// How much to print. Progress bars go to stderr and only when it is a terminal.
 #[derive(Debug, Clone, Copy)]
@@ -69,6 +70,8 @@ pub struct FrameArgs {
     /// Read every N-th frame from --start.
     #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub step: u32,
+    #[command(flatten)]
+    pub bad: BadFrameArgs,
 }
 
 impl FrameArgs {
@@ -79,6 +82,7 @@ impl FrameArgs {
             start: self.start,
             end: self.end,
             step: self.step,
+            on_bad_frame: self.bad.policy(),
         };
         crate::flags::check_overrides(
             options.validate(),
@@ -91,6 +95,102 @@ impl FrameArgs {
             None,
         )?;
         Ok(options)
+    }
+}
+
+/// `--on-bad-frame` (docs/FORMATS.md, "Damaged input").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BadFrameArg {
+    /// Stop with an error naming the frame and the file.
+    Fail,
+    /// Leave the frame out (a gap in time), list it in the summary and in
+    /// `<output>.skipped.json`.
+    Skip,
+}
+
+/// What to do with a frame that cannot be read, for every command that reads frames.
+#[derive(Debug, Clone, clap::Args)]
+pub struct BadFrameArgs {
+    /// A frame that cannot be read (undecodable or truncated image, missing number in a
+    /// numbered folder, video shorter than it announces): fail (exit 1, naming frame and
+    /// file) or skip (a gap in time, listed in the summary and in <OUTPUT>.skipped.json).
+    #[arg(long, value_enum, default_value_t = BadFrameArg::Fail, value_name = "WHAT")]
+    pub on_bad_frame: BadFrameArg,
+}
+
+impl BadFrameArgs {
+    /// The source's policy.
+    pub fn policy(&self) -> OnBadFrame {
+        match self.on_bad_frame {
+            BadFrameArg::Fail => OnBadFrame::Fail,
+            BadFrameArg::Skip => OnBadFrame::Skip,
+        }
+    }
+}
+
+/// After a run under `--on-bad-frame skip`: tells the skipped frames of `source` on stderr
+/// and writes them to the sidecar of `output` (`<output>.skipped.json`; none for `-` or
+/// without an output). Does nothing under `fail`.
+pub fn report_skipped(
+    ui: &Ui,
+    policy: OnBadFrame,
+    source: &Path,
+    log: &SkipLog,
+    output: Option<&Path>,
+) -> Result<()> {
+    if policy != OnBadFrame::Skip {
+        return Ok(());
+    }
+    let skipped = log.frames();
+    let sidecar: Option<PathBuf> = output.and_then(bad_frame::sidecar_path);
+    if let Some(p) = &sidecar {
+        bad_frame::write_sidecar(p, source, &skipped)?;
+    }
+    if !skipped.is_empty() {
+        ui.info(format!(
+            "warning: skipped {} bad frame{} of {}: {}{}",
+            skipped.len(),
+            if skipped.len() == 1 { "" } else { "s" },
+            source.display(),
+            bad_frame::summarize(&skipped),
+            sidecar.map_or(String::new(), |p| format!(" (list: {})", p.display()))
+        ));
+    }
+    Ok(())
+}
+
+/// `-o -` (standard output) only where a stream makes sense: these clap value parsers turn
+/// it into a usage error (exit 2) for outputs that are folders, frames or plots, which
+/// would otherwise make a folder or file named `-`.
+pub fn folder_output(s: &str) -> std::result::Result<PathBuf, String> {
+    not_stdout(
+        s,
+        "a folder of files cannot go to standard output; give a folder name",
+    )
+}
+
+/// As [`folder_output`], for `render`'s frames (a folder of PNG files or a video file).
+pub fn frames_output(s: &str) -> std::result::Result<PathBuf, String> {
+    not_stdout(
+        s,
+        "frames cannot go to standard output; give a folder name, or a video file name \
+         ending in .mp4, .mkv, .avi or .webm",
+    )
+}
+
+/// As [`folder_output`], for plots (the format comes from the extension).
+pub fn plot_output(s: &str) -> std::result::Result<PathBuf, String> {
+    not_stdout(
+        s,
+        "a plot cannot go to standard output; give a file name ending in .png or .svg",
+    )
+}
+
+fn not_stdout(s: &str, why: &str) -> std::result::Result<PathBuf, String> {
+    if s == "-" {
+        Err(why.to_owned())
+    } else {
+        Ok(PathBuf::from(s))
     }
 }
 

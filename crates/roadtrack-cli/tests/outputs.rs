@@ -105,7 +105,7 @@ fn a_png_folder_output_holds_exactly_the_frames_of_the_last_run() {
         .args(["-q", "-o", "-"])
         .output()
         .expect("render -");
-    assert!(!o.status.success());
+    assert_eq!(o.status.code(), Some(2), "a usage error");
     assert!(
         String::from_utf8_lossy(&o.stderr).contains("standard output"),
         "{}",

@@ -31,7 +31,7 @@ fn vtest_decodes_to_795_frames_of_768_by_576() -> roadtrack::Result<()> {
         start: 50,
         end: Some(700),
         step: 100,
-        fps: None,
+        ..SourceOptions::default()
     };
     let idx: Vec<u32> = source::open(&p, &opts)?
         .map(|f| f.map(|f| f.index))
@@ -120,5 +120,83 @@ fn a_frame_of_the_wrong_size_and_an_abandoned_video_leave_no_file() -> roadtrack
         .map_err(|e| roadtrack::Error::io("tmp", e))?
         .collect();
     assert!(left.is_empty(), "{left:?}");
+    Ok(())
+}
+
+#[test]
+fn a_video_cut_short_says_so_or_skips_the_frames_it_announced() -> roadtrack::Result<()> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/vtest.avi");
+    if !p.is_file() || !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg and ../shared/data/vtest.avi");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    let cut = dir.path().join("cut.avi");
+    let bytes = std::fs::read(&p).map_err(|e| roadtrack::Error::io(&p, e))?;
+    std::fs::write(&cut, &bytes[..100_000]).map_err(|e| roadtrack::Error::io(&cut, e))?;
+    // The first 100 kB hold 3 whole frames; the header still announces 795.
+    let items: Vec<_> = source::open(&cut, &SourceOptions::default())?.collect();
+    assert_eq!(items.iter().filter(|f| f.is_ok()).count(), 3);
+    assert_eq!(
+        items.len(),
+        4,
+        "under fail the first bad frame ends the source"
+    );
+    let m = items[3].as_ref().expect_err("frame 4").to_string();
+    assert!(
+        m.contains("cut.avi") && m.contains("frame 4") && m.contains("ended at frame 3 of 795"),
+        "{m}"
+    );
+    let skip = SourceOptions {
+        on_bad_frame: roadtrack::io::OnBadFrame::Skip,
+        step: 2,
+        end: Some(100),
+        ..SourceOptions::default()
+    };
+    let src = source::open(&cut, &skip)?;
+    let log = src.skip_log();
+    let idx: Vec<u32> = src
+        .map(|f| f.map(|f| f.index))
+        .collect::<roadtrack::Result<_>>()?;
+    assert_eq!(idx, [1, 3]);
+    let skipped: Vec<u32> = log.frames().iter().map(|s| s.frame).collect();
+    assert_eq!(skipped, (5..=99).step_by(2).collect::<Vec<u32>>());
+    Ok(())
+}
+
+#[test]
+fn a_cut_video_without_a_frame_count_is_judged_by_its_duration() -> roadtrack::Result<()> {
+    if !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    let p = dir.path().join("noise.mkv");
+    // Matroska states a duration but no frame count. Noise keeps every frame large, so
+    // cutting the file cuts frames.
+    let mut writer = video::VideoWriter::create(&p, 64, 48, 10.0)?;
+    let mut state = 12345u32;
+    for i in 1..=30 {
+        let img = image::RgbImage::from_fn(64, 48, |_, _| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let v = (state >> 24) as u8;
+            image::Rgb([v, v, v])
+        });
+        writer.write_frame(i, &img)?;
+    }
+    writer.finish()?;
+    let whole: Vec<_> = source::open(&p, &SourceOptions::default())?.collect();
+    assert_eq!(whole.len(), 30);
+    assert!(
+        whole.iter().all(|f| f.is_ok()),
+        "the whole file is not cut short"
+    );
+    let bytes = std::fs::read(&p).map_err(|e| roadtrack::Error::io(&p, e))?;
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).map_err(|e| roadtrack::Error::io(&p, e))?;
+    let m = source::open(&p, &SourceOptions::default())?
+        .find_map(|f| f.err())
+        .expect("cut short")
+        .to_string();
+    assert!(m.contains("noise.mkv") && m.contains("announced"), "{m}");
     Ok(())
 }

@@ -12,7 +12,7 @@ pub mod sim;
 use roadtrack::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
 use roadtrack::error::Result;
 use roadtrack::frame::Frame;
-use roadtrack::io::{SourceOptions, source};
+use roadtrack::io::{OnBadFrame, SkipLog, SourceOptions, source};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -81,10 +81,12 @@ pub fn machine() -> Machine {
     }
 }
 
-/// Decodes `path` (any frame source) and returns the stage result.
-pub fn decode(path: &Path, options: &SourceOptions) -> Result<StageResult> {
+/// Decodes `path` (any frame source) and returns the stage result, with the frames
+/// skipped under `--on-bad-frame skip`.
+pub fn decode(path: &Path, options: &SourceOptions) -> Result<(StageResult, SkipLog)> {
     let start = Instant::now();
     let src = source::open(path, options)?;
+    let skipped = src.skip_log();
     let label = input_label(path, src.info.width, src.info.height);
     let mut n = 0u64;
     let mut checksum = 0u64;
@@ -102,13 +104,8 @@ pub fn decode(path: &Path, options: &SourceOptions) -> Result<StageResult> {
         n += 1;
     }
     std::hint::black_box(checksum);
-    Ok(StageResult::new(
-        "decode",
-        &label,
-        n,
-        "frames",
-        start.elapsed().as_secs_f64(),
-    ))
+    let result = StageResult::new("decode", &label, n, "frames", start.elapsed().as_secs_f64());
+    Ok((result, skipped))
 }
 
 /// Runs foreground extraction over frames already in memory (decode excluded).
@@ -135,10 +132,16 @@ pub fn detect_frames(
     ))
 }
 
-/// Reads up to `max_frames` frames of `path` into memory.
-pub fn load_frames(path: &Path, max_frames: u32) -> Result<(String, Vec<Frame>)> {
+/// Reads up to `max_frames` frames of `path` into memory (bad frames as `on_bad_frame`
+/// says).
+pub fn load_frames(
+    path: &Path,
+    max_frames: u32,
+    on_bad_frame: OnBadFrame,
+) -> Result<(String, Vec<Frame>)> {
     let opts = SourceOptions {
         end: Some(max_frames),
+        on_bad_frame,
         ..Default::default()
     };
     let src = source::open(path, &opts)?;

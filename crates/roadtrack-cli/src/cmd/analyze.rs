@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long, value_name = "Z.toml")]
     pub zones: Option<PathBuf>,
     /// Output folder.
-    #[arg(short, long, default_value = "analysis")]
+    #[arg(short, long, default_value = "analysis", value_parser = crate::common::folder_output)]
     pub output: PathBuf,
     /// Frame rate for MOTChallenge input (time = (frame − 1) / fps).
     #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = crate::flags::positive)]

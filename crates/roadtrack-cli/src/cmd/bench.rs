@@ -1,6 +1,6 @@
 //! `roadtrack bench`: throughput of each stage on bundled scenarios, with the machine named.
 
-use crate::common::Ui;
+use crate::common::{BadFrameArgs, Ui, report_skipped};
 use anyhow::Result;
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::io::SourceOptions;
@@ -28,6 +28,8 @@ pub struct Args {
     /// Largest vehicle count of the relaxation scale stage (50, 1 000, 10 000, 100 000).
     #[arg(long, default_value_t = 100_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub max_vehicles: usize,
+    #[command(flatten)]
+    pub bad: BadFrameArgs,
 }
 
 /// The stages of `--stages`.
@@ -66,13 +68,19 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     }
     if have_video && want(Stage::Decode) {
         bar.set_message("decode");
-        results.push(bench::decode(&args.video, &SourceOptions::default())?);
+        let options = SourceOptions {
+            on_bad_frame: args.bad.policy(),
+            ..SourceOptions::default()
+        };
+        let (result, skipped) = bench::decode(&args.video, &options)?;
+        results.push(result);
+        report_skipped(ui, options.on_bad_frame, &args.video, &skipped, None)?;
     }
     let generated = roadtrack_sim::testkit::moving_boxes(640, 480, args.frames, 12);
     if want(Stage::Detect) {
         bar.set_message("detect");
         if have_video {
-            let (label, frames) = bench::load_frames(&args.video, 400)?;
+            let (label, frames) = bench::load_frames(&args.video, 400, args.bad.policy())?;
             results.push(bench::detect_frames(
                 &label,
                 &frames,
@@ -167,7 +175,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             b.seconds,
         ));
         if have_video {
-            let (_, frames) = bench::load_frames(&args.video, 200)?;
+            let (_, frames) = bench::load_frames(&args.video, 200, args.bad.policy())?;
             let b = bench::mrf::bench_mrf(&cfg, &frames, 1, 0)?;
             results.push(StageResult::new(
                 "mrf",

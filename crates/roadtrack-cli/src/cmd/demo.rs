@@ -12,7 +12,7 @@ use std::path::PathBuf;
 #[command(after_help = "Example:\n  roadtrack demo -o demo/ && less demo/report.md")]
 pub struct Args {
     /// Output folder.
-    #[arg(short, long, default_value = "demo")]
+    #[arg(short, long, default_value = "demo", value_parser = crate::common::folder_output)]
     pub output: PathBuf,
     /// Frames to simulate.
     #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u32).range(1..))]

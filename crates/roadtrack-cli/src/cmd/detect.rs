@@ -1,6 +1,6 @@
 //! `roadtrack detect`: moving-object extraction for fixed cameras.
 
-use crate::common::{DetectorArgs, FrameArgs, Ui, load_config};
+use crate::common::{DetectorArgs, FrameArgs, Ui, load_config, report_skipped};
 use anyhow::{Context, Result};
 use roadtrack::detect::DetectorSpec;
 use roadtrack::detect::background::BackgroundDetectorConfig;
@@ -35,10 +35,10 @@ pub struct Args {
     #[arg(long, value_name = "K", value_parser = crate::flags::positive)]
     pub threshold_sigma: Option<f64>,
     /// Also write each frame with the detected boxes drawn, as PNG, into this folder.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub overlay: Option<PathBuf>,
     /// Also write each frame's cleaned foreground mask, as PNG, into this folder.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub masks: Option<PathBuf>,
     #[command(flatten)]
     pub detector: DetectorArgs,
@@ -102,6 +102,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let mut detector = spec.build(&args.input, &options, &info)?;
     bar.finish_and_clear();
     let frames = source::open(&args.input, &options)?;
+    let skipped = frames.skip_log();
     let bar = ui.progress(total.map(u64::from), "detect");
     let mut overlay = args.overlay.as_deref().map(AtomicDir::create).transpose()?;
     let mut masks = args.masks.as_deref().map(AtomicDir::create).transpose()?;
@@ -141,6 +142,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         n_frames,
         args.output.display()
     ));
+    report_skipped(
+        ui,
+        options.on_bad_frame,
+        &args.input,
+        &skipped,
+        Some(&args.output),
+    )?;
     Ok(())
 }
 

@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(required_unless_present = "series", conflicts_with = "series")]
     pub tracks: Option<PathBuf>,
     /// Output plot, .png or .svg.
-    #[arg(short, long, default_value = "plot.png", value_name = "PLOT")]
+    #[arg(short, long, default_value = "plot.png", value_name = "PLOT", value_parser = crate::common::plot_output)]
     pub output: PathBuf,
     /// Background: an image file, or a video / image folder / sequence whose first frame
     /// is used. Sets the plot's extent to the frame.

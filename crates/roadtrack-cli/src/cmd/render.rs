@@ -1,6 +1,6 @@
 //! `roadtrack render`: boxes, ids, class colours and fading trails over the frames.
 
-use crate::common::{FrameArgs, Ui};
+use crate::common::{FrameArgs, Ui, report_skipped};
 use crate::overlay::OverlaySink;
 use anyhow::{Context, Result};
 use roadtrack::io::{read_track_points, read_truth_points, sink, source};
@@ -31,7 +31,7 @@ pub struct Args {
     pub truth: Option<PathBuf>,
     /// Output: a name ending in .mp4, .mkv, .avi or .webm writes a video (needs the ffmpeg
     /// program); anything else is a folder that receives NNNNNN.png per frame.
-    #[arg(short, long, value_name = "OUT")]
+    #[arg(short, long, value_name = "OUT", value_parser = crate::common::frames_output)]
     pub output: PathBuf,
     /// Trail length in frames (0 for no trails).
     #[arg(long, default_value_t = 30, value_name = "N")]
@@ -69,6 +69,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     )?;
     let options = args.frames.options()?;
     let frames = source::open(&args.input, &options)?;
+    let skipped = frames.skip_log();
     let info = frames.info.clone();
     let tracks = read_track_points(&args.tracks, info.fps)?;
     let truth = match &args.truth {
@@ -88,8 +89,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     ));
     // Choice: with --step k the video plays at fps / k, so it runs in real time.
     let video_fps = info.fps / f64::from(options.step);
-    let out = sink::open_sink(&args.output, video_fps)
+    let mut out = sink::open_sink(&args.output, video_fps)
         .with_context(|| format!("opening output {}", args.output.display()))?;
+    if options.on_bad_frame == roadtrack::io::OnBadFrame::Skip && sink::is_video_path(&args.output)
+    {
+        // A skipped frame keeps its time in a video: the frame before it is held.
+        out = Box::new(sink::HoldOverGaps::new(out, options.step));
+    }
     let total = info.selected_frames.map(u64::from);
     let bar = ui.progress(total, "render");
     let mut overlay = OverlaySink::new(&config, truth.as_deref(), out)?;
@@ -103,5 +109,12 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         overlay.frames,
         args.output.display()
     ));
+    report_skipped(
+        ui,
+        options.on_bad_frame,
+        &args.input,
+        &skipped,
+        Some(&args.output),
+    )?;
     Ok(())
 }

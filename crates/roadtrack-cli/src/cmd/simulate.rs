@@ -22,7 +22,7 @@ use std::path::PathBuf;
     roadtrack simulate --scene crossing --view oblique --from-trajectories traj.csv -o ext/")]
 pub struct Args {
     /// Output folder.
-    #[arg(short, long, value_name = "DIR")]
+    #[arg(short, long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub output: PathBuf,
     /// Scenario [default: road, or the config's].
     #[arg(long, value_enum)]

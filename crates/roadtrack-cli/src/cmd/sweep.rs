@@ -42,7 +42,7 @@ pub struct Args {
     pub grid_c: Option<Steps>,
     /// Also plot the rate against B (at the best A: for the best C, C = 0, and the
     /// paper's A 0.5, C 1), PNG or SVG by extension.
-    #[arg(long, value_name = "F.png|svg")]
+    #[arg(long, value_name = "F.png|svg", value_parser = crate::common::plot_output)]
     pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub relax: RelaxArgs,

@@ -1,6 +1,6 @@
 //! `roadtrack track`: run a tracking method over a video, image folder or MOT sequence.
 
-use crate::common::{DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config};
+use crate::common::{DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config, report_skipped};
 use anyhow::{Context, Result};
 use roadtrack::analysis::ground::GroundStage;
 use roadtrack::analysis::kinematics::GroundPoint;
@@ -102,7 +102,7 @@ pub struct Args {
     #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub window_scale: Option<f64>,
     /// MRF: write the Object-map of every frame as PNG plus object_maps.csv into this folder.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub object_maps: Option<PathBuf>,
     #[command(flatten)]
     pub detector: DetectorArgs,
@@ -287,6 +287,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         sinks,
     };
     let frames = source::open(&args.input, &options)?;
+    let skipped = frames.skip_log();
     let total = frames.info.selected_frames.map(u64::from);
     let summary = pipeline
         .run(frames, total, &mut progress)
@@ -298,6 +299,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         summary.points,
         args.output.display()
     ));
+    report_skipped(
+        ui,
+        options.on_bad_frame,
+        &args.input,
+        &skipped,
+        Some(&args.output),
+    )?;
     Ok(())
 }
 

@@ -6,6 +6,7 @@
 //! half-written file that looks complete.
 
 pub mod atomic;
+pub mod bad_frame;
 pub mod detections;
 pub mod geojson;
 pub mod matches;
@@ -22,6 +23,7 @@ pub mod trajectories;
 pub mod video;
 
 pub use atomic::{AtomicFile, write_atomic};
+pub use bad_frame::{OnBadFrame, SkipLog, SkippedFrame};
 pub use source::{FrameSource, SourceInfo, SourceKind, SourceOptions};
 
 use crate::error::Result;

@@ -130,6 +130,47 @@ impl FrameSink for LazyVideo {
     }
 }
 
+/// A video sink that keeps time over skipped frames (`--on-bad-frame skip`): when a frame
+/// arrives more than `step` frames after the one before, the one before is held (written
+/// again) for the missing frames, so the video stays as long as the source and later frames
+/// keep their times. A PNG folder needs none of this: its file names carry the frame
+/// numbers.
+pub struct HoldOverGaps {
+    inner: Box<dyn FrameSink>,
+    step: u32,
+    last: Option<(u32, RgbImage)>,
+}
+
+impl HoldOverGaps {
+    /// Wraps `inner`, whose frames are `step` source frames apart (`--step`).
+    pub fn new(inner: Box<dyn FrameSink>, step: u32) -> Self {
+        Self {
+            inner,
+            step: step.max(1),
+            last: None,
+        }
+    }
+}
+
+impl FrameSink for HoldOverGaps {
+    fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+        if let Some((k, held)) = &self.last
+            && index > *k
+        {
+            for _ in 1..(index - k) / self.step {
+                self.inner.write_frame(*k, held)?;
+            }
+        }
+        self.inner.write_frame(index, image)?;
+        self.last = Some((index, image.clone()));
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        self.inner.finish()
+    }
+}
+
 /// A sink for `path`: a video when [`is_video_path`], else a PNG folder. `fps` is the
 /// video's frame rate (ignored for PNG folders).
 ///
@@ -156,6 +197,35 @@ pub fn open_sink(path: &Path, fps: f64) -> Result<Box<dyn FrameSink>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gaps_are_held_over_at_the_frame_step() -> Result<()> {
+        struct Log(std::sync::Arc<std::sync::Mutex<Vec<(u32, u8)>>>);
+        impl FrameSink for Log {
+            fn write_frame(&mut self, index: u32, image: &RgbImage) -> Result<()> {
+                if let Ok(mut v) = self.0.lock() {
+                    v.push((index, image.get_pixel(0, 0)[0]));
+                }
+                Ok(())
+            }
+            fn finish(&mut self) -> Result<()> {
+                Ok(())
+            }
+        }
+        let got = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let mut sink = HoldOverGaps::new(Box::new(Log(got.clone())), 2);
+        for i in [1u8, 3, 9, 11] {
+            sink.write_frame(
+                u32::from(i),
+                &RgbImage::from_pixel(1, 1, image::Rgb([i, 0, 0])),
+            )?;
+        }
+        sink.finish()?;
+        let got = got.lock().map(|v| v.clone()).unwrap_or_default();
+        // Frames 5 and 7 are missing: frame 3 is shown in their place.
+        assert_eq!(got, [(1, 1), (3, 3), (3, 3), (3, 3), (9, 9), (11, 11)]);
+        Ok(())
+    }
 
     #[test]
     fn video_paths_are_recognised_by_extension() {

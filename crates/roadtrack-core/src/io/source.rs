@@ -1,7 +1,14 @@
 //! Frame sources: a folder of numbered images, a MOTChallenge sequence folder, or a video
 //! file decoded by ffmpeg. Each yields frames one at a time, so memory does not grow with
 //! the sequence length.
+//!
+//! A frame that cannot be read (an undecodable or truncated image, a frame of another
+//! size, a gap in a numbered folder, a video that ends before the frame count it announced)
+//! is an error naming the frame and the file, or, with [`OnBadFrame::Skip`], left out and
+//! recorded in the source's [`SkipLog`]. Frames keep the source's numbering either way, so
+//! a missing frame is a gap in time, not a renumbering.
 
+use super::bad_frame::{OnBadFrame, SkipLog, SkippedFrame, check_jpeg_complete, frame_numbers};
 use super::natural::natural_cmp;
 use super::seqinfo::SeqInfo;
 use super::video::VideoReader;
@@ -21,6 +28,8 @@ pub struct SourceOptions {
     pub end: Option<u32>,
     /// Yield every `step`-th frame from `start` (default 1).
     pub step: u32,
+    /// What to do with a frame that cannot be read (`--on-bad-frame`; default: fail).
+    pub on_bad_frame: OnBadFrame,
 }
 
 impl Default for SourceOptions {
@@ -30,6 +39,7 @@ impl Default for SourceOptions {
             start: 1,
             end: None,
             step: 1,
+            on_bad_frame: OnBadFrame::Fail,
         }
     }
 }
@@ -84,6 +94,12 @@ impl SourceOptions {
             (last - self.start) / self.step + 1
         }
     }
+
+    /// How many of the frames `first..=last` are selected.
+    pub fn count_between(&self, first: u32, last: u32) -> u32 {
+        let before = first.saturating_sub(1);
+        self.count_of(last).saturating_sub(self.count_of(before))
+    }
 }
 
 /// What kind of source a path is.
@@ -117,10 +133,40 @@ pub struct SourceInfo {
 }
 
 /// An open frame source: an iterator of frames plus what is known about it.
+///
+/// Under [`OnBadFrame::Skip`] it leaves out the frames it cannot read and records them in
+/// its [`SkipLog`] ([`FrameSource::skip_log`]); under [`OnBadFrame::Fail`] such a frame is
+/// an error item. Other errors (a missing ffmpeg, a failing pipe) are error items either
+/// way.
 pub struct FrameSource {
     /// What is known about the source.
     pub info: SourceInfo,
     frames: Box<dyn Iterator<Item = Result<Frame>> + Send>,
+    on_bad_frame: OnBadFrame,
+    skipped: SkipLog,
+    /// Under fail: a bad frame was met, so the source has ended.
+    failed: bool,
+}
+
+impl FrameSource {
+    fn new(
+        info: SourceInfo,
+        frames: Box<dyn Iterator<Item = Result<Frame>> + Send>,
+        options: &SourceOptions,
+    ) -> Self {
+        Self {
+            info,
+            frames,
+            on_bad_frame: options.on_bad_frame,
+            skipped: SkipLog::default(),
+            failed: false,
+        }
+    }
+
+    /// A handle on the frames skipped so far, to read after the source has been consumed.
+    pub fn skip_log(&self) -> SkipLog {
+        self.skipped.clone()
+    }
 }
 
 impl std::fmt::Debug for FrameSource {
@@ -134,8 +180,27 @@ impl std::fmt::Debug for FrameSource {
 impl Iterator for FrameSource {
     type Item = Result<Frame>;
 
+    /// The next frame; under fail the first error is the source's last item (a reader
+    /// that samples frames cannot pass over it and report a later one).
     fn next(&mut self) -> Option<Self::Item> {
-        self.frames.next()
+        if self.failed {
+            return None;
+        }
+        loop {
+            match self.frames.next()? {
+                Err(e) if self.on_bad_frame == OnBadFrame::Skip => {
+                    match SkippedFrame::from_error(&e, &self.info.path) {
+                        Some(s) => self.skipped.push(s),
+                        None => return Some(Err(e)),
+                    }
+                }
+                Err(e) => {
+                    self.failed = true;
+                    return Some(Err(e));
+                }
+                item => return Some(item),
+            }
+        }
     }
 }
 
@@ -145,7 +210,9 @@ pub const DEFAULT_FPS: f64 = 10.0;
 /// Opens `path` as a frame source.
 ///
 /// A folder with `seqinfo.ini` is a MOTChallenge sequence; any other folder is read as
-/// numbered images (`.png`, `.jpg`, `.jpeg`, in natural order); a file is a video.
+/// numbered images (`.png`, `.jpg`, `.jpeg`, in natural order; see
+/// [`super::bad_frame::frame_numbers`] for how names become frame numbers); a file is a
+/// video.
 pub fn open(path: &Path, options: &SourceOptions) -> Result<FrameSource> {
     options.validate()?;
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
@@ -154,17 +221,24 @@ pub fn open(path: &Path, options: &SourceOptions) -> Result<FrameSource> {
         if seqinfo.is_file() {
             let info = SeqInfo::read(&seqinfo)?;
             let fps = options.fps.unwrap_or(info.frame_rate);
-            let files = list_images(&path.join(&info.im_dir))?;
-            open_images(path, SourceKind::MotSequence, files, fps, options)
+            let dir = path.join(&info.im_dir);
+            let files = list_images(&dir)?;
+            let folder = ImageFolder {
+                kind: SourceKind::MotSequence,
+                dir,
+                files,
+                announced: Some(info.seq_length),
+            };
+            open_images(path, folder, fps, options)
         } else {
             let files = list_images(path)?;
-            open_images(
-                path,
-                SourceKind::ImageFolder,
+            let folder = ImageFolder {
+                kind: SourceKind::ImageFolder,
+                dir: path.to_owned(),
                 files,
-                options.fps.unwrap_or(DEFAULT_FPS),
-                options,
-            )
+                announced: None,
+            };
+            open_images(path, folder, options.fps.unwrap_or(DEFAULT_FPS), options)
         }
     } else {
         let reader = VideoReader::open(path, options.end)?;
@@ -179,26 +253,111 @@ pub fn open(path: &Path, options: &SourceOptions) -> Result<FrameSource> {
             total_frames: total,
             selected_frames: total.map(|t| options.count_of(t)),
         };
-        let opts = options.clone();
-        let frames = reader
-            .enumerate()
-            .map(|(i, r)| (i as u32 + 1, r))
-            .take_while(move |(i, _)| opts.end.is_none_or(|e| *i <= e))
-            .filter({
-                let opts = options.clone();
-                move |(i, r)| r.is_err() || opts.selects(*i)
-            })
-            .map(move |(index, r)| {
-                r.map(|image| Frame {
-                    index,
-                    time_s: f64::from(index - 1) / fps,
-                    image,
-                })
-            });
-        Ok(FrameSource {
-            info,
-            frames: Box::new(frames),
-        })
+        let announced = reader.announced_frames();
+        let frames = VideoFrames {
+            path: path.to_owned(),
+            reader,
+            options: options.clone(),
+            fps,
+            read: 0,
+            announced,
+            missing: None,
+            done: false,
+        };
+        Ok(FrameSource::new(info, Box::new(frames), options))
+    }
+}
+
+/// The frames of a video, numbered as decoded, then one bad-frame error for each selected
+/// frame the video announced but did not deliver.
+struct VideoFrames {
+    path: PathBuf,
+    reader: VideoReader,
+    options: SourceOptions,
+    fps: f64,
+    /// Frames decoded so far.
+    read: u32,
+    /// The frame count the container announced (or its duration implies).
+    announced: Option<u32>,
+    /// Frames still to report as missing (next, last) and why.
+    missing: Option<(u32, u32, String)>,
+    done: bool,
+}
+
+impl VideoFrames {
+    /// After the decoder stopped at frame `self.read`: the frames up to the announced
+    /// count (within `--end`) from `from` on are missing.
+    fn ended(&mut self, from: u32) {
+        self.done = true;
+        let Some(announced) = self.announced else {
+            return;
+        };
+        let last = self.options.end.map_or(announced, |e| e.min(announced));
+        if from <= last {
+            self.missing = Some((
+                from,
+                last,
+                format!(
+                    "video ended at frame {} of {announced} announced (cut short or damaged)",
+                    self.read
+                ),
+            ));
+        }
+    }
+}
+
+impl Iterator for VideoFrames {
+    type Item = Result<Frame>;
+
+    fn next(&mut self) -> Option<Result<Frame>> {
+        loop {
+            if let Some((next, last, reason)) = &mut self.missing {
+                while *next <= *last {
+                    let k = *next;
+                    *next += 1;
+                    if self.options.selects(k) {
+                        return Some(Err(Error::Frame {
+                            path: self.path.clone(),
+                            frame: k,
+                            message: reason.clone(),
+                        }));
+                    }
+                }
+                self.missing = None;
+                return None;
+            }
+            if self.done {
+                return None;
+            }
+            match self.reader.next() {
+                Some(Ok(image)) => {
+                    self.read += 1;
+                    let index = self.read;
+                    if self.options.end.is_some_and(|e| index > e) {
+                        self.done = true;
+                        return None;
+                    }
+                    if self.options.selects(index) {
+                        return Some(Ok(Frame {
+                            index,
+                            time_s: f64::from(index - 1) / self.fps,
+                            image,
+                        }));
+                    }
+                }
+                Some(Err(e)) => {
+                    // The decoder is finished after an error: the frame it failed on is
+                    // bad, and so is every announced frame after it.
+                    let failed = self.read + 1;
+                    self.ended(failed + 1);
+                    let is_frame_error = matches!(e, Error::Frame { .. });
+                    if !is_frame_error || self.options.selects(failed) {
+                        return Some(Err(e));
+                    }
+                }
+                None => self.ended(self.read + 1),
+            }
+        }
     }
 }
 
@@ -227,42 +386,117 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// The images of a folder or of a sequence's image folder.
+struct ImageFolder {
+    kind: SourceKind,
+    /// The folder holding the images.
+    dir: PathBuf,
+    files: Vec<PathBuf>,
+    /// The frame count `seqinfo.ini` announces.
+    announced: Option<u32>,
+}
+
+/// Decodes one image file, frame `frame` of its folder.
+///
+/// # Errors
+/// [`Error::Frame`] naming the file: unreadable, truncated (a JPEG without its end
+/// marker, see [`check_jpeg_complete`]) or undecodable.
+pub fn read_image(file: &Path, frame: u32) -> Result<image::RgbImage> {
+    let bad = |message: String| Error::Frame {
+        path: file.to_owned(),
+        frame,
+        message,
+    };
+    let bytes = std::fs::read(file).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let format = image::ImageFormat::from_path(file).ok();
+    if format == Some(image::ImageFormat::Jpeg) {
+        check_jpeg_complete(&bytes).map_err(bad)?;
+    }
+    let decoded = match format {
+        Some(f) => image::load_from_memory_with_format(&bytes, f),
+        None => image::load_from_memory(&bytes),
+    };
+    Ok(decoded.map_err(|e| bad(e.to_string()))?.into_rgb8())
+}
+
 fn open_images(
     path: &Path,
-    kind: SourceKind,
-    files: Vec<PathBuf>,
+    folder: ImageFolder,
     fps: f64,
     options: &SourceOptions,
 ) -> Result<FrameSource> {
-    let total =
-        u32::try_from(files.len()).map_err(|_| Error::format(path, "more than 2³² images"))?;
-    let (width, height) = image::image_dimensions(&files[0]).map_err(|e| Error::Image {
-        source: e,
-        path: files[0].clone(),
-    })?;
+    let ImageFolder {
+        kind,
+        dir,
+        files,
+        announced,
+    } = folder;
+    if u32::try_from(files.len()).is_err() {
+        return Err(Error::format(path, "more than 2³² images"));
+    }
+    let sequence = kind == SourceKind::MotSequence;
+    let numbers = frame_numbers(&files, sequence);
+    let numbered: Vec<(u32, PathBuf)> = numbers.into_iter().zip(files).collect();
+    // Choice: a sequence's frames run from 1 to the larger of its last image and
+    // seqinfo.ini's seqLength, so lost frames at either end are missing frames; a plain
+    // folder's run from its first image to its last (it announces nothing more).
+    let first = if sequence { 1 } else { numbered[0].0 };
+    let last_file = numbered[numbered.len() - 1].0;
+    let last = announced.map_or(last_file, |n| n.max(last_file));
+    // The size comes from the first image whose header reads (under skip; under fail a
+    // bad first header is the first frame's error).
+    let mut size = None;
+    for (frame, file) in &numbered {
+        match image::image_dimensions(file) {
+            Ok(d) => {
+                size = Some(d);
+                break;
+            }
+            Err(e) if options.on_bad_frame == OnBadFrame::Fail => {
+                return Err(Error::Frame {
+                    path: file.clone(),
+                    frame: *frame,
+                    message: e.to_string(),
+                });
+            }
+            Err(_) => {}
+        }
+    }
+    let Some((width, height)) = size else {
+        return Err(Error::format(&dir, "no image in this folder can be read"));
+    };
     let info = SourceInfo {
         path: path.to_owned(),
         kind,
         width,
         height,
         fps,
-        total_frames: Some(total),
-        selected_frames: Some(options.count_of(total)),
+        total_frames: Some(last),
+        selected_frames: Some(options.count_between(first, last)),
     };
     let opts = options.clone();
-    let frames = files
-        .into_iter()
-        .enumerate()
-        .map(|(i, f)| (i as u32 + 1, f))
-        .filter(move |(i, _)| opts.selects(*i))
-        .map(move |(index, file)| {
-            let image = image::open(&file)
-                .map_err(|e| Error::Frame {
-                    path: file.clone(),
+    let end = options.end.map_or(last, |e| e.min(last));
+    let mut files = numbered.into_iter().peekable();
+    let frames = (first..=end)
+        .filter(move |k| opts.selects(*k))
+        .map(move |index| {
+            while files.next_if(|(n, _)| *n < index).is_some() {}
+            let Some((_, file)) = files.next_if(|(n, _)| *n == index) else {
+                return Err(Error::Frame {
+                    path: dir.clone(),
                     frame: index,
-                    message: e.to_string(),
-                })?
-                .into_rgb8();
+                    message: format!(
+                        "missing: no image for this frame (the folder's images are \
+                         numbered as frames {first}–{last_file}{})",
+                        if last > last_file {
+                            format!(", seqinfo.ini announces {last}")
+                        } else {
+                            String::new()
+                        }
+                    ),
+                });
+            };
+            let image = read_image(&file, index)?;
             if image.dimensions() != (width, height) {
                 return Err(Error::Frame {
                     path: file,
@@ -280,10 +514,7 @@ fn open_images(
                 image,
             })
         });
-    Ok(FrameSource {
-        info,
-        frames: Box::new(frames),
-    })
+    Ok(FrameSource::new(info, Box::new(frames), options))
 }
 
 #[cfg(test)]
@@ -326,6 +557,7 @@ mod tests {
             start: 2,
             end: Some(9),
             step: 3,
+            ..SourceOptions::default()
         };
         let src = open(dir.path(), &opts)?;
         assert_eq!(src.info.selected_frames, Some(3));
@@ -392,5 +624,95 @@ mod tests {
             ..Default::default()
         };
         assert!(open(dir.path(), &bad).is_err());
+    }
+    fn skip() -> SourceOptions {
+        SourceOptions {
+            on_bad_frame: OnBadFrame::Skip,
+            ..SourceOptions::default()
+        }
+    }
+
+    #[test]
+    fn a_missing_number_is_a_bad_frame_and_a_gap_in_time() -> Result<()> {
+        let dir = folder(5, |i| format!("{i:06}.png"));
+        std::fs::remove_file(dir.path().join("000003.png")).expect("rm");
+        let src = open(dir.path(), &SourceOptions::default())?;
+        assert_eq!(src.info.total_frames, Some(5));
+        let items: Vec<Result<Frame>> = src.collect();
+        assert_eq!(
+            items.len(),
+            3,
+            "under fail the first bad frame ends the source"
+        );
+        let m = items[2].as_ref().expect_err("frame 3 missing").to_string();
+        assert!(m.contains("frame 3") && m.contains("missing"), "{m}");
+        let src = open(dir.path(), &skip())?;
+        let log = src.skip_log();
+        let frames: Vec<Frame> = src.collect::<Result<_>>()?;
+        let idx: Vec<u32> = frames.iter().map(|f| f.index).collect();
+        assert_eq!(idx, [1, 2, 4, 5], "frame 4 stays frame 4");
+        assert!((frames[2].time_s - 0.3).abs() < 1e-12);
+        assert_eq!(frames[2].image.get_pixel(0, 0)[0], 4, "the image of 000004");
+        let skipped = log.frames();
+        assert_eq!(skipped.len(), 1);
+        assert_eq!(skipped[0].frame, 3);
+        assert_eq!(skipped[0].file, dir.path());
+        Ok(())
+    }
+
+    #[test]
+    fn a_truncated_jpeg_is_a_bad_frame() -> Result<()> {
+        let dir = tempfile::tempdir().expect("tempdir");
+        for i in 1..=3 {
+            RgbImage::from_pixel(32, 24, Rgb([90, 90, 90]))
+                .save(dir.path().join(format!("{i}.jpg")))
+                .expect("save");
+        }
+        let p = dir.path().join("2.jpg");
+        let bytes = std::fs::read(&p).expect("read");
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).expect("cut");
+        let err = open(dir.path(), &SourceOptions::default())?
+            .find_map(|f| f.err())
+            .expect("an error")
+            .to_string();
+        assert!(
+            err.contains("2.jpg") && err.contains("frame 2") && err.contains("truncated"),
+            "{err}"
+        );
+        let src = open(dir.path(), &skip())?;
+        let log = src.skip_log();
+        let idx: Vec<u32> = src.map(|f| f.map(|f| f.index)).collect::<Result<_>>()?;
+        assert_eq!(idx, [1, 3]);
+        assert_eq!(log.frames()[0].file, p);
+        Ok(())
+    }
+
+    #[test]
+    fn a_sequence_shorter_than_its_seqinfo_has_missing_frames_at_the_end() -> Result<()> {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let img1 = dir.path().join("img1");
+        std::fs::create_dir(&img1).expect("mkdir");
+        for i in 2..=3 {
+            RgbImage::new(4, 4)
+                .save(img1.join(format!("{i:06}.png")))
+                .expect("save");
+        }
+        SeqInfo {
+            name: "x".into(),
+            im_dir: "img1".into(),
+            frame_rate: 25.0,
+            seq_length: 4,
+            im_width: 4,
+            im_height: 4,
+            im_ext: ".png".into(),
+        }
+        .write(&dir.path().join("seqinfo.ini"))?;
+        let src = open(dir.path(), &skip())?;
+        let log = src.skip_log();
+        let idx: Vec<u32> = src.map(|f| f.map(|f| f.index)).collect::<Result<_>>()?;
+        assert_eq!(idx, [2, 3]);
+        let missing: Vec<u32> = log.frames().iter().map(|s| s.frame).collect();
+        assert_eq!(missing, [1, 4]);
+        Ok(())
     }
 }

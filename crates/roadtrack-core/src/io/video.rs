@@ -31,6 +31,8 @@ pub struct VideoReader {
     pub fps: f64,
     /// Frame count reported by the container, when it has one.
     pub total_frames: Option<u32>,
+    /// Duration reported by the stream or the container, s, when known.
+    pub duration_s: Option<f64>,
     frames_read: u32,
     done: bool,
 }
@@ -46,6 +48,8 @@ pub struct Probe {
     pub fps: f64,
     /// Frame count, when the container states it.
     pub total_frames: Option<u32>,
+    /// Duration, s, when the stream or the container states it.
+    pub duration_s: Option<f64>,
 }
 
 fn spawn_error(program: &'static str, e: &std::io::Error) -> Error {
@@ -167,7 +171,7 @@ pub fn ffmpeg_available() -> bool {
 pub fn probe(path: &Path) -> Result<Probe> {
     let out = Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .arg("stream=width,height,r_frame_rate,avg_frame_rate,nb_frames")
+        .arg("stream=width,height,r_frame_rate,avg_frame_rate,nb_frames,duration:format=duration")
         .args(["-of", "default=noprint_wrappers=1"])
         .arg(path)
         .stdin(Stdio::null())
@@ -211,6 +215,12 @@ pub fn probe(path: &Path) -> Result<Probe> {
         .or_else(|| get("r_frame_rate").and_then(rate))
         .ok_or_else(|| bad("frame rate"))?;
     let total_frames = get("nb_frames").and_then(|s| s.parse().ok());
+    // The stream's duration when it has one (listed first), else the container's.
+    let duration_s = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("duration="))
+        .find_map(|s| s.trim().parse::<f64>().ok())
+        .filter(|d| d.is_finite() && *d > 0.0);
     if width == 0 || height == 0 {
         return Err(bad("non-zero size"));
     }
@@ -219,6 +229,7 @@ pub fn probe(path: &Path) -> Result<Probe> {
         height,
         fps,
         total_frames,
+        duration_s,
     })
 }
 
@@ -245,8 +256,22 @@ impl VideoReader {
             height: p.height,
             fps: p.fps,
             total_frames: p.total_frames,
+            duration_s: p.duration_s,
             frames_read: 0,
             done: false,
+        })
+    }
+
+    /// The frame count the video announces: the container's frame count, else the one its
+    /// duration implies.
+    ///
+    /// Choice: a duration is rounded when stored, so the count it implies, ⌊duration × fps⌋,
+    /// is lowered by one frame: a video that ends one frame early by its duration alone is
+    /// not called cut short.
+    pub fn announced_frames(&self) -> Option<u32> {
+        self.total_frames.or_else(|| {
+            let n = (self.duration_s? * self.fps + 1e-6).floor();
+            (n >= 2.0 && n < f64::from(u32::MAX)).then(|| n as u32 - 1)
         })
     }
 
