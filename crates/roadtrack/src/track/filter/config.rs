@@ -237,6 +237,22 @@ impl FilterTrackConfig {
                 ));
             }
         }
+        use crate::limits::{MAX_IMAGE_SIDE, MAX_PARTICLES_PER_OBJECT, at_most};
+        at_most(
+            self.birth_particles_per_detection,
+            MAX_PARTICLES_PER_OBJECT,
+            "particles per object",
+        )
+        .and_then(|()| {
+            at_most(
+                self.birth_particles_per_detection,
+                self.phd.max_particles,
+                "phd.max_particles",
+            )
+        })
+        .map_err(|m| Error::config(c, "birth_particles_per_detection", m))?;
+        at_most(l.min_window_px, MAX_IMAGE_SIDE, "longest image side")
+            .map_err(|m| Error::config(c, "likelihood.min_window_px", m))?;
         Ok(())
     }
 
