@@ -301,3 +301,55 @@ fn match_on_a_dense_scene_is_bounded_and_the_label_cap_is_a_bounded_flag() {
     let o = run(&[&"match", &f1, &f2, &"--config", &cfg, &"-o", &out]);
     refused(&o, 1, &["max_labels", "4096"]);
 }
+
+// 7. The general sweep: a few more of the bounds, through the command line.
+
+#[test]
+fn other_counts_and_spans_are_bounded() {
+    let d = tempfile::tempdir().expect("tempdir");
+    // A pair Δt of 1e308 s used to simulate that long.
+    let o = run(&[
+        &"simulate",
+        &"--pairs",
+        &"1e308",
+        &"-o",
+        &d.path().join("p"),
+    ]);
+    refused(&o, 1, &["dt_s", "86400"]);
+    let o = run(&[
+        &"simulate",
+        &"--pairs",
+        &"1.5",
+        &"--n-pairs",
+        &"4000000000",
+        &"-o",
+        &d.path().join("p"),
+    ]);
+    refused(&o, 1, &["n_pairs", "100000"]);
+    // With epsilon 0 the relaxation never converges: the iteration cap must be bounded.
+    let f = fixture("relaxation/1-platoon/frame1.csv");
+    let f2 = fixture("relaxation/1-platoon/frame2.csv");
+    let o = run(&[
+        &"match",
+        &f,
+        &f2,
+        &"--max-iterations",
+        &"4000000000",
+        &"-o",
+        &d.path().join("m.csv"),
+    ]);
+    refused(&o, 1, &["max_iterations", "100000"]);
+    // A likelihood window larger than any image.
+    let cfg = write(d.path(), "f.toml", "[likelihood]\nmin_window_px = 100000\n");
+    let o = run(&[
+        &"track",
+        &fixture("tiny_sequence"),
+        &"--method",
+        &"pf",
+        &"--config",
+        &cfg,
+        &"-o",
+        &d.path().join("t.txt"),
+    ]);
+    refused(&o, 1, &["min_window_px", "16384"]);
+}

@@ -152,6 +152,8 @@ impl TrainConfig {
         }
         // Sizes are bounded before anything is allocated (docs/FORMATS.md, Limits).
         use roadtrack::limits as l;
+        l::at_most(self.epochs, l::MAX_ITERATIONS, "epochs")
+            .map_err(|m| Error::config("TrainConfig", "epochs", m))?;
         for (v, max, f) in [
             (self.input_height, l::MAX_CNN_INPUT_SIDE, "input_height"),
             (self.input_width, l::MAX_CNN_INPUT_SIDE, "input_width"),

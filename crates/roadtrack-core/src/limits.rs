@@ -72,6 +72,20 @@ pub const MAX_DURATION_S: f64 = 86_400.0;
 // Choice: the same count as frames; 10⁷ steps of a busy scene take hours already.
 pub const MAX_SIM_STEPS: f64 = MAX_FRAME as f64;
 
+/// The most iterations of an iterative method (`RelaxationConfig::max_iterations`,
+/// `MrfConfig::max_iterations`) and epochs of training (`TrainConfig::epochs`).
+// Choice: the paper's methods use 20–50; 100 000 is a run of hours, not of years.
+pub const MAX_ITERATIONS: u32 = 100_000;
+
+/// The most frames the background model keeps for its initial median
+/// (`BackgroundConfig::bootstrap_frames`).
+// Choice: the default is 25; every frame is held in memory until the median is taken.
+pub const MAX_BOOTSTRAP_FRAMES: u32 = 1_000;
+
+/// The most two-frame problems `simulate --pairs` writes (`PairsConfig::n_pairs`).
+// Choice: the paper's tables use tens to hundreds of problems.
+pub const MAX_PAIRS: u32 = 100_000;
+
 /// The most particles per object (`particles_per_object`, `birth_particles_per_detection`,
 /// `particles_per_target`, `birth_particles_per_measurement`).
 // Choice: the paper uses 70–100; 100 000 is a thousand times that (≈ 5 MB per object).

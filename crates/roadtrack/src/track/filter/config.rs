@@ -202,6 +202,12 @@ impl FilterTrackConfig {
         self.detector.validate()?;
         self.pf.validate()?;
         self.phd.validate()?;
+        crate::limits::at_most(
+            self.likelihood.min_window_px,
+            crate::limits::MAX_IMAGE_SIDE,
+            "longest image side",
+        )
+        .map_err(|m| Error::config(c, "likelihood.min_window_px", m))?;
         self.likelihood.colour((32.0, 32.0)).validate()?;
         let l = &self.likelihood;
         if !(l.window_scale.is_finite() && l.window_scale > 0.0) {
@@ -237,7 +243,7 @@ impl FilterTrackConfig {
                 ));
             }
         }
-        use crate::limits::{MAX_IMAGE_SIDE, MAX_PARTICLES_PER_OBJECT, at_most};
+        use crate::limits::{MAX_PARTICLES_PER_OBJECT, at_most};
         at_most(
             self.birth_particles_per_detection,
             MAX_PARTICLES_PER_OBJECT,
@@ -251,8 +257,6 @@ impl FilterTrackConfig {
             )
         })
         .map_err(|m| Error::config(c, "birth_particles_per_detection", m))?;
-        at_most(l.min_window_px, MAX_IMAGE_SIDE, "longest image side")
-            .map_err(|m| Error::config(c, "likelihood.min_window_px", m))?;
         Ok(())
     }
 

@@ -261,7 +261,9 @@ impl RelaxationConfig {
                 ));
             }
         }
-        use crate::limits::{MAX_LABELS, at_most};
+        use crate::limits::{MAX_ITERATIONS, MAX_LABELS, at_most};
+        at_most(self.max_iterations, MAX_ITERATIONS, "iterations")
+            .map_err(|m| Error::config("RelaxationConfig", "max_iterations", m))?;
         for (name, v) in [
             ("max_labels", self.max_labels),
             ("max_neighbours", self.max_neighbours),
