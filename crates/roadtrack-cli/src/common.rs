@@ -59,7 +59,7 @@ impl Ui {
 #[derive(Debug, Clone, clap::Args)]
 pub struct FrameArgs {
     /// Frames per second (image folders default to 10; overrides a video's own rate).
-    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
+    #[arg(long, value_name = "FPS", value_parser = roadtrack::limits::parse_fps)]
     pub fps: Option<f64>,
     /// First frame to read (1-based).
     #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]

@@ -150,6 +150,32 @@ impl TrainConfig {
         if !(self.negatives_per_positive >= 0.0 && self.negatives_per_positive.is_finite()) {
             return bad("negatives_per_positive", "must be non-negative".into());
         }
+        // Sizes are bounded before anything is allocated (docs/FORMATS.md, Limits).
+        use roadtrack::limits as l;
+        l::at_most(self.epochs, l::MAX_ITERATIONS, "epochs")
+            .map_err(|m| Error::config("TrainConfig", "epochs", m))?;
+        for (v, max, f) in [
+            (self.input_height, l::MAX_CNN_INPUT_SIDE, "input_height"),
+            (self.input_width, l::MAX_CNN_INPUT_SIDE, "input_width"),
+            (self.batch_size, l::MAX_BATCH_SIZE, "batch_size"),
+            (self.conv1_channels, l::MAX_CNN_CHANNELS, "conv1_channels"),
+            (self.conv2_channels, l::MAX_CNN_CHANNELS, "conv2_channels"),
+            (self.max_positives, l::MAX_PATCHES, "max_positives"),
+        ] {
+            l::at_most(v, max, f).map_err(|m| Error::config("TrainConfig", f, m))?;
+        }
+        l::at_most(
+            self.batch_size * self.input_height * self.input_width,
+            l::MAX_BATCH_PIXELS,
+            "batch_size × input_height × input_width",
+        )
+        .map_err(|m| Error::config("TrainConfig", "batch_size", m))?;
+        l::at_most(
+            self.negatives_per_positive,
+            l::MAX_NEGATIVES_PER_POSITIVE,
+            "negatives_per_positive",
+        )
+        .map_err(|m| Error::config("TrainConfig", "negatives_per_positive", m))?;
         Ok(())
     }
 }

@@ -18,6 +18,7 @@ pub mod error;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod limits;
 pub mod rng;
 pub mod track_point;
 

@@ -689,6 +689,32 @@ impl SimConfig {
             "max_step_s",
             "must be in (0, 1] s",
         )?;
+        // Bounds (docs/FORMATS.md, Limits): the frames, the simulated time and the traffic
+        // steps it takes, checked before the warm-up loop starts.
+        use roadtrack_core::limits::{MAX_DURATION_S, MAX_FPS, MAX_FRAME, MAX_SIM_STEPS, at_most};
+        let limit =
+            |r: std::result::Result<(), String>, field| r.map_err(|m| Error::config(C, field, m));
+        limit(at_most(self.frames, MAX_FRAME, "frames"), "frames")?;
+        limit(at_most(self.fps, MAX_FPS, "frames/s"), "fps")?;
+        limit(at_most(self.warmup_s, MAX_DURATION_S, "s"), "warmup_s")?;
+        let span_s = self.warmup_s + f64::from(self.frames) / self.fps;
+        limit(
+            at_most(
+                span_s,
+                MAX_DURATION_S,
+                "simulated s: warmup_s + frames / fps",
+            ),
+            "frames",
+        )?;
+        let steps = span_s / self.max_step_s + f64::from(self.frames);
+        limit(
+            at_most(
+                steps.ceil(),
+                MAX_SIM_STEPS,
+                "traffic steps: (warmup_s + frames / fps) / max_step_s",
+            ),
+            "max_step_s",
+        )?;
         check(
             (1..=100).contains(&self.jpeg_quality),
             C,

@@ -14,6 +14,7 @@ use rand::RngExt;
 use roadtrack_core::class::ObjectClass;
 use roadtrack_core::error::{Error, Result};
 use roadtrack_core::io::table::Table;
+use roadtrack_core::limits::{MAX_DURATION_S, at_most};
 use roadtrack_core::rng::{Stream, rng_for};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -104,6 +105,10 @@ impl ExternalTrajectories {
                 .opt_u64("id")?
                 .ok_or_else(|| row.error("id", "empty id"))?;
             let time_s = row.f64("time_s")?;
+            // Choice: times lie within a day either side of 0 (docs/FORMATS.md, Limits):
+            // the frames written span the file's times.
+            at_most(time_s.abs(), MAX_DURATION_S, "|time_s|, s")
+                .map_err(|m| row.error("time_s", m))?;
             if !seen.insert((id, time_s.to_bits())) {
                 return Err(row.error(
                     "time_s",
@@ -149,7 +154,10 @@ impl ExternalTrajectories {
             ));
             Ok(())
         })?;
-        Self::new(samples).map_err(|e| Error::format(path, e.to_string()))
+        let t = Self::new(samples).map_err(|e| Error::format(path, e.to_string()))?;
+        at_most(t.t_last_s - t.t_first_s, MAX_DURATION_S, "time span, s")
+            .map_err(|m| Error::format(path, format!("the samples' times: {m}")))?;
+        Ok(t)
     }
 
     /// Time of the first sample, s.

@@ -54,7 +54,7 @@ use render::SceneRenderer;
 use roadtrack_core::calibration::Calibration;
 use roadtrack_core::class::ObjectClass;
 use roadtrack_core::detection::Detection;
-use roadtrack_core::error::Result;
+use roadtrack_core::error::{Error, Result};
 use roadtrack_core::frame::Frame;
 use roadtrack_core::geometry::{BBox, Point};
 use roadtrack_core::rng::{Rng, Stream, rng, rng_for};
@@ -220,6 +220,15 @@ impl Simulation {
         config.validate()?;
         let scene = Scene::build(config, rng(seed, Stream::Scenario).random::<f64>());
         let n = frames.unwrap_or_else(|| trajectories.frames_spanned(config.fps));
+        roadtrack_core::limits::at_most(n, roadtrack_core::limits::MAX_FRAME, "frames").map_err(
+            |m| {
+                Error::Invalid(format!(
+                    "the trajectories at {} frames/s make {m}: give fewer frames or a lower \
+                     frame rate",
+                    config.fps
+                ))
+            },
+        )?;
         let (spf, step_s) = steps(config);
         Self::with_source(
             config,

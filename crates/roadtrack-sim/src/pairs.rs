@@ -95,6 +95,29 @@ impl PairsConfig {
             return bad("spacing_s", "must be finite and positive");
         }
         check_range("PairsConfig", "warmup_s", self.warmup_s, 0.0..)?;
+        // Bounds (docs/FORMATS.md, Limits): the simulated time is warm-up plus a spacing
+        // and a Δt per problem.
+        use roadtrack_core::limits::{MAX_DURATION_S, MAX_PAIRS, at_most};
+        let limit = |r: std::result::Result<(), String>, f: &'static str| {
+            r.map_err(|m| Error::config("PairsConfig", f, m))
+        };
+        limit(at_most(self.n_pairs, MAX_PAIRS, "problems"), "n_pairs")?;
+        let span = self.warmup_s + f64::from(self.n_pairs) * (self.spacing_s + self.dt_s);
+        for (v, f) in [
+            (self.dt_s, "dt_s"),
+            (self.spacing_s, "spacing_s"),
+            (self.warmup_s, "warmup_s"),
+            (span, "n_pairs"),
+        ] {
+            limit(
+                at_most(
+                    v,
+                    MAX_DURATION_S,
+                    "simulated s: warmup_s + n_pairs × (spacing_s + dt_s)",
+                ),
+                f,
+            )?;
+        }
         Ok(())
     }
 }

@@ -13,7 +13,7 @@
 //! ([`assignment`]).
 
 pub use roadtrack_core::{
-    calibration, class, config, detection, error, frame, geometry, io, rng, track_point,
+    calibration, class, config, detection, error, frame, geometry, io, limits, rng, track_point,
 };
 
 pub mod analysis;

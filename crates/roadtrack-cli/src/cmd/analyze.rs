@@ -30,7 +30,7 @@ pub struct Args {
     #[arg(short, long, default_value = "analysis", value_parser = crate::common::folder_output)]
     pub output: PathBuf,
     /// Frame rate for MOTChallenge input (time = (frame − 1) / fps).
-    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = crate::flags::positive)]
+    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = roadtrack::limits::parse_fps)]
     pub fps: f64,
     /// Half-width of the speed smoother's window, s.
     #[arg(long, default_value_t = 0.5, value_name = "S", value_parser = crate::flags::non_negative)]

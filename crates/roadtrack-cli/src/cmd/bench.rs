@@ -17,7 +17,7 @@ pub struct Args {
     #[arg(long, default_value = "../shared/data/vtest.avi")]
     pub video: PathBuf,
     /// Frames of the generated 640×480 sequence.
-    #[arg(long, default_value_t = 300, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 300, value_parser = clap::value_parser!(u32).range(1..=i64::from(roadtrack::limits::MAX_FRAME)))]
     pub frames: u32,
     /// Print one JSON object instead of a table.
     #[arg(long)]

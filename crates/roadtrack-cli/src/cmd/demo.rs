@@ -15,7 +15,7 @@ pub struct Args {
     #[arg(short, long, default_value = "demo", value_parser = crate::common::folder_output)]
     pub output: PathBuf,
     /// Frames to simulate.
-    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 150, value_parser = clap::value_parser!(u32).range(1..=i64::from(roadtrack::limits::MAX_FRAME)))]
     pub frames: u32,
     /// Seed of the simulation and the trackers.
     #[arg(long, default_value_t = 0)]

@@ -80,8 +80,10 @@ pub struct Args {
     /// IoU a CLEAR / identity match needs (default 0.5).
     #[arg(long, value_name = "T", value_parser = crate::flags::fraction)]
     pub iou_threshold: Option<f64>,
-    /// Sequence length in frames (default: seqinfo.ini's seqLength, else the last frame).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    /// Sequence length in frames (default: seqinfo.ini's seqLength, else the last frame);
+    /// at most 10 000 000.
+    #[arg(long, value_name = "N",
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(roadtrack::limits::MAX_FRAME)))]
     pub num_frames: Option<u32>,
     /// Also compute position RMSE in x and y and speed RMSE (px, px/s; with --calibration
     /// also m and km/h) of tracks associated with truth objects.
@@ -95,7 +97,7 @@ pub struct Args {
     #[arg(long, value_name = "C.toml", requires = "rmse")]
     pub calibration: Option<PathBuf>,
     /// Frame rate for speeds (default: seqinfo.ini's frameRate, else 10).
-    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
+    #[arg(long, value_name = "FPS", value_parser = roadtrack::limits::parse_fps)]
     pub fps: Option<f64>,
     /// Detections CSV: the detection table TP / FP / FN against the truth within --gate-px.
     #[arg(long, value_name = "D.csv", requires_all = ["truth", "gate_px"])]

@@ -46,7 +46,17 @@ pub struct RelaxArgs {
     /// How probabilities become pairs [default: argmax, the paper's].
     #[arg(long, value_enum)]
     pub decision: Option<DecisionRule>,
+    /// At most N labels per vehicle, the nearest in the gate (bounds time and memory in
+    /// dense scenes), 1–4096 [default: 32].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_LABELS))]
+    pub max_labels: Option<u32>,
+    /// At most N neighbours per vehicle, the nearest within R, 1–4096 [default: 32].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_LABELS))]
+    pub max_neighbours: Option<u32>,
 }
+
+/// [`roadtrack::limits::MAX_LABELS`] as a clap range bound.
+const MAX_LABELS: i64 = roadtrack::limits::MAX_LABELS as i64;
 
 impl RelaxArgs {
     /// The configuration: `--config` (or the default) with every given flag applied,
@@ -74,7 +84,12 @@ impl RelaxArgs {
         if let Some(d) = self.decision {
             c.decision = d;
         }
-        // Every flag is range-checked by clap, and the file by `load_config`.
+        if let Some(n) = self.max_labels {
+            c.max_labels = n as usize;
+        }
+        if let Some(n) = self.max_neighbours {
+            c.max_neighbours = n as usize;
+        }
         c.validate()?;
         Ok(c)
     }

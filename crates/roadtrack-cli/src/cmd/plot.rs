@@ -36,7 +36,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Axis::X, requires = "time_space")]
     pub axis: Axis,
     /// Frame rate for the times of a MOTChallenge tracks file, frames/s.
-    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = crate::flags::positive)]
+    #[arg(long, default_value_t = 10.0, value_name = "FPS", value_parser = roadtrack::limits::parse_fps)]
     pub fps: f64,
     /// Chart the columns of this CSV table instead (e.g. a sweep table).
     #[arg(

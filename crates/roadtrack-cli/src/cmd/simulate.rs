@@ -32,7 +32,7 @@ pub struct Args {
     pub view: Option<ViewKind>,
     /// Frames to write [default: 300, or the config's; with --from-trajectories the
     /// file's whole time span].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=i64::from(roadtrack::limits::MAX_FRAME)))]
     pub frames: Option<u32>,
     /// Seed of every random draw (same seed → byte-identical folder).
     #[arg(long, default_value_t = 0, value_name = "N")]
@@ -40,8 +40,8 @@ pub struct Args {
     /// TOML file with a `SimConfig` (e.g. the `simulation.toml` of an earlier run).
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
-    /// Frame rate, frames/s [default: 10].
-    #[arg(long, value_name = "FPS", value_parser = crate::flags::positive)]
+    /// Frame rate, frames/s, at most 1000 [default: 10].
+    #[arg(long, value_name = "FPS", value_parser = roadtrack::limits::parse_fps)]
     pub fps: Option<f64>,
     /// Image width, px [default: 640].
     #[arg(long, value_name = "PX")]

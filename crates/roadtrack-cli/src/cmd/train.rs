@@ -4,6 +4,7 @@ use crate::common::Ui;
 #[cfg(feature = "cnn")]
 use anyhow::Context;
 use anyhow::{Result, bail};
+use roadtrack::limits::MAX_CNN_INPUT_SIDE;
 #[cfg(feature = "cnn")]
 use roadtrack_cnn::train::{
     Preset, TrainConfig, patches_from_folders, patches_from_sequence, train,
@@ -54,7 +55,8 @@ pub struct Args {
     /// Fraction of patches used for training; the rest tests (default 0.8).
     #[arg(long, value_name = "F", value_parser = crate::flags::open_fraction)]
     pub train_fraction: Option<f64>,
-    /// Network input HEIGHTxWIDTH in px (preset: person 64x32, vehicle 32x48).
+    /// Network input HEIGHTxWIDTH in px, each side 10–1024 (preset: person 64x32,
+    /// vehicle 32x48).
     #[arg(long, value_name = "HxW", value_parser = parse_size)]
     pub input_size: Option<(usize, usize)>,
     /// Most positives drawn from a sequence (preset: person 900, vehicle 5000).
@@ -79,16 +81,26 @@ pub enum Preset {
     Vehicle,
 }
 
-/// `--input-size HxW`: two positive integers.
+/// Parses `HEIGHTxWIDTH` with each side in `10..=`[`MAX_CNN_INPUT_SIDE`] (a usage error
+/// otherwise, before anything is allocated).
 fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
-    let bad = || format!("expected HEIGHTxWIDTH in px, e.g. 64x32, found `{s}`");
-    let (h, w) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let h: usize = h.trim().parse().map_err(|_| bad())?;
-    let w: usize = w.trim().parse().map_err(|_| bad())?;
-    if h == 0 || w == 0 {
-        return Err(bad());
-    }
-    Ok((h, w))
+    let (h, w) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected HEIGHTxWIDTH, e.g. 64x32, found {s:?}"))?;
+    let side = |v: &str| -> std::result::Result<usize, String> {
+        let n: usize = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("{v:?} is not a whole number of pixels"))?;
+        if (10..=MAX_CNN_INPUT_SIDE).contains(&n) {
+            Ok(n)
+        } else {
+            Err(format!(
+                "each side must be 10–{MAX_CNN_INPUT_SIDE} px (docs/FORMATS.md, Limits), found {n}"
+            ))
+        }
+    };
+    Ok((side(h)?, side(w)?))
 }
 
 /// Without the `cnn` feature there is no trainer: fail before reading any data.

@@ -30,13 +30,7 @@ pub fn read_detections(path: &Path) -> Result<Vec<Detection>> {
     let mut row_number = 0u64;
     table.for_each(|row| {
         row_number += 1;
-        let frame = match row.opt_u64("frame")? {
-            None => 1,
-            Some(0) => return Err(row.error("frame", "frame numbers start at 1")),
-            Some(f) => {
-                u32::try_from(f).map_err(|_| row.error("frame", "frame number too large"))?
-            }
-        };
+        let frame = row.opt_frame("frame")?.unwrap_or(1);
         let id = row.opt_u64("id")?.unwrap_or(row_number);
         if !seen.insert((frame, id)) {
             return Err(row.error("id", format!("id {id} appears twice in frame {frame}")));

@@ -13,6 +13,7 @@ use super::table::{field_f64, num, trim};
 use crate::detection::Detection;
 use crate::error::{Error, Result};
 use crate::geometry::BBox;
+use crate::limits::{MAX_FRAME, at_most};
 use crate::track_point::TrackPoint;
 use std::io::Write as _;
 use std::path::Path;
@@ -93,12 +94,12 @@ fn fields(line: &str) -> Option<Fields<'_>> {
 fn frame_of(path: &Path, line: u64, f: &[&str]) -> Result<u32> {
     // Fast path: a plain integer (what every writer produces).
     if let Some(Ok(x)) = f.first().map(|s| s.parse::<u32>())
-        && x >= 1
+        && (1..=MAX_FRAME).contains(&x)
     {
         return Ok(x);
     }
     let x = field_f64(path, line, f, 0, "frame")?;
-    if x < 1.0 || x.fract() != 0.0 || x > f64::from(u32::MAX) {
+    if x < 1.0 || x.fract() != 0.0 {
         return Err(Error::parse(
             path,
             line,
@@ -106,6 +107,8 @@ fn frame_of(path: &Path, line: u64, f: &[&str]) -> Result<u32> {
             format!("frame must be an integer ≥ 1, found {}", f[0]),
         ));
     }
+    at_most(x, f64::from(MAX_FRAME), "largest frame number")
+        .map_err(|m| Error::parse(path, line, "frame", m))?;
     Ok(x as u32)
 }
 

@@ -38,6 +38,12 @@ pub fn read_occlusion(path: &Path) -> Result<Vec<OcclusionRow>> {
                 .ok_or_else(|| row.error(name, "value missing"))
         };
         let frame = int("frame")?;
+        crate::limits::at_most(
+            frame,
+            u64::from(crate::limits::MAX_FRAME),
+            "largest frame number",
+        )
+        .map_err(|m| row.error("frame", m))?;
         let separated = match int("separated")? {
             0 => false,
             1 => true,

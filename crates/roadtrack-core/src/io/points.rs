@@ -4,6 +4,8 @@
 use super::table::{Table, num};
 use crate::error::Result;
 use crate::geometry::Point;
+use crate::limits::{MAX_MEASUREMENTS_PER_STEP, MAX_STEP, at_most};
+use std::collections::HashMap;
 use std::path::Path;
 
 /// One point measurement at a time step.
@@ -31,14 +33,25 @@ pub struct PointEstimate {
 }
 
 /// Reads measurements; rows are returned sorted by step (stable).
+///
+/// # Errors
+/// Names file, line and column of a missing or non-numeric value, a step above
+/// [`MAX_STEP`] and the measurement that makes its step hold more than
+/// [`MAX_MEASUREMENTS_PER_STEP`].
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>> {
     let table = Table::open(path)?;
     table.require(&["step", "x", "y"])?;
     let mut out = Vec::new();
+    let mut per_step: HashMap<u64, usize> = HashMap::new();
     table.for_each(|row| {
         let step = row
             .opt_u64("step")?
             .ok_or_else(|| row.error("step", "empty step"))?;
+        at_most(step, MAX_STEP, "largest step").map_err(|m| row.error("step", m))?;
+        let n = per_step.entry(step).or_insert(0);
+        *n += 1;
+        at_most(*n, MAX_MEASUREMENTS_PER_STEP, "measurements in one step")
+            .map_err(|m| row.error("step", format!("step {step}: {m}")))?;
         out.push(Measurement {
             step,
             pos: Point::new(row.f64("x")?, row.f64("y")?),
@@ -70,10 +83,12 @@ pub fn read_estimates(path: &Path) -> Result<Vec<PointEstimate>> {
         if weight < 0.0 {
             return Err(row.error("weight", format!("negative weight {weight}")));
         }
+        let step = row
+            .opt_u64("step")?
+            .ok_or_else(|| row.error("step", "empty step"))?;
+        at_most(step, MAX_STEP, "largest step").map_err(|m| row.error("step", m))?;
         out.push(PointEstimate {
-            step: row
-                .opt_u64("step")?
-                .ok_or_else(|| row.error("step", "empty step"))?,
+            step,
             label: row
                 .opt_u64("label")?
                 .ok_or_else(|| row.error("label", "empty label"))?,

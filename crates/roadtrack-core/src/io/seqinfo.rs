@@ -1,6 +1,7 @@
 //! MOTChallenge `seqinfo.ini`.
 
 use crate::error::{Error, Result};
+use crate::limits::{MAX_FPS, MAX_FRAME, MAX_IMAGE_SIDE, at_most};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -75,7 +76,9 @@ impl SeqInfo {
                 .map(|(_, v)| v.clone())
                 .unwrap_or_else(|| default.to_owned())
         };
-        let num = |k: &str, key_name: &str| -> Result<f64> {
+        // Choice: every number has an upper bound (docs/FORMATS.md, Limits), checked here so
+        // that a sequence of 10⁹ frames is refused before a per-frame table is allocated.
+        let num = |k: &str, key_name: &str, max: f64| -> Result<f64> {
             let (line, v) = kv
                 .get(k)
                 .ok_or_else(|| Error::format(path, format!("missing key `{key_name}`")))?;
@@ -90,6 +93,7 @@ impl SeqInfo {
                     format!("must be positive, found {v}"),
                 ));
             }
+            at_most(x, max, key_name).map_err(|m| Error::parse(path, *line, key_name, m))?;
             Ok(x)
         };
         let default_name = path
@@ -100,10 +104,10 @@ impl SeqInfo {
         Ok(Self {
             name: text_of("name", &default_name),
             im_dir: text_of("imdir", "img1"),
-            frame_rate: num("framerate", "frameRate")?,
-            seq_length: num("seqlength", "seqLength")? as u32,
-            im_width: num("imwidth", "imWidth")? as u32,
-            im_height: num("imheight", "imHeight")? as u32,
+            frame_rate: num("framerate", "frameRate", MAX_FPS)?,
+            seq_length: num("seqlength", "seqLength", f64::from(MAX_FRAME))? as u32,
+            im_width: num("imwidth", "imWidth", f64::from(MAX_IMAGE_SIDE))? as u32,
+            im_height: num("imheight", "imHeight", f64::from(MAX_IMAGE_SIDE))? as u32,
             im_ext: text_of("imext", ".jpg"),
         })
     }

@@ -75,6 +75,10 @@ impl SourceOptions {
                 format!("must be positive, found {fps}"),
             ));
         }
+        if let Some(fps) = self.fps {
+            crate::limits::at_most(fps, crate::limits::MAX_FPS, "frames/s")
+                .map_err(|m| Error::config("SourceOptions", "fps", m))?;
+        }
         Ok(())
     }
 

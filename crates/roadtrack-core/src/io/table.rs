@@ -1,6 +1,7 @@
 //! Shared reading of header-named CSV files with precise error positions.
 
 use crate::error::{Error, Result};
+use crate::limits::{MAX_FRAME, at_most};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -139,6 +140,20 @@ impl Row<'_> {
                 .parse::<u64>()
                 .map(Some)
                 .map_err(|_| self.error(name, format!("not a non-negative integer: {s:?}"))),
+        }
+    }
+
+    /// A frame number in column `name`: an integer in `1..=`[`MAX_FRAME`], or `None` when
+    /// absent or empty.
+    pub fn opt_frame(&self, name: &str) -> Result<Option<u32>> {
+        match self.opt_u64(name)? {
+            None => Ok(None),
+            Some(0) => Err(self.error(name, "frame numbers start at 1")),
+            Some(f) => {
+                at_most(f, u64::from(MAX_FRAME), "largest frame number")
+                    .map_err(|m| self.error(name, m))?;
+                Ok(Some(f as u32))
+            }
         }
     }
 

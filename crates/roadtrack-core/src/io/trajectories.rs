@@ -126,10 +126,9 @@ pub fn read_trajectories(path: &Path) -> Result<Vec<TrackPoint>> {
     let mut out = Vec::new();
     let mut seen = HashSet::new();
     table.for_each(|row| {
-        let frame = match row.opt_u64("frame")? {
-            Some(f) if f >= 1 => u32::try_from(f).map_err(|_| row.error("frame", "too large"))?,
-            _ => return Err(row.error("frame", "frame must be an integer ≥ 1")),
-        };
+        let frame = row
+            .opt_frame("frame")?
+            .ok_or_else(|| row.error("frame", "frame must be an integer ≥ 1"))?;
         let id = row
             .opt_u64("id")?
             .ok_or_else(|| row.error("id", "empty id"))?;

@@ -104,6 +104,12 @@ impl BackgroundConfig {
                 "must be at least 1",
             ));
         }
+        crate::limits::at_most(
+            self.bootstrap_frames,
+            crate::limits::MAX_BOOTSTRAP_FRAMES,
+            "frames held for the median",
+        )
+        .map_err(|m| Error::config("BackgroundConfig", "bootstrap_frames", m))?;
         Ok(())
     }
 }

@@ -172,6 +172,10 @@ impl EvalConfig {
                 "must be at least 1",
             ));
         }
+        if let Some(n) = self.num_frames {
+            crate::limits::at_most(n, crate::limits::MAX_FRAME, "frames in a sequence")
+                .map_err(|m| Error::config("EvalConfig", "num_frames", m))?;
+        }
         Ok(())
     }
 
@@ -414,6 +418,10 @@ fn evaluate_boxes(gt: &[MotGtRow], mut tr: Vec<TrBox>, cfg: &EvalConfig) -> Resu
         .chain(tr.iter().map(|r| r.frame))
         .max()
         .unwrap_or(0);
+    // The per-frame tables below have one entry per frame; the readers bound frames, rows
+    // built in code are checked here.
+    crate::limits::at_most(last, crate::limits::MAX_FRAME, "largest frame number")
+        .map_err(|m| Error::Invalid(format!("a row's frame: {m}")))?;
     let num_frames = match cfg.num_frames {
         Some(n) if n < last => {
             return Err(Error::Invalid(format!(

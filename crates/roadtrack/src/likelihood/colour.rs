@@ -57,6 +57,13 @@ impl ColourLikelihoodConfig {
                 "width and height must be ≥ 1 px",
             ));
         }
+        let side = self.window.width_px.max(self.window.height_px);
+        crate::limits::at_most(
+            side,
+            crate::limits::MAX_IMAGE_SIDE,
+            "longest image side, px",
+        )
+        .map_err(|m| Error::config(c, "window", m))?;
         if self.pixel_step == 0 {
             return Err(Error::config(c, "pixel_step", "must be ≥ 1"));
         }

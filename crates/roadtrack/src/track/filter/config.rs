@@ -214,6 +214,12 @@ impl FilterTrackConfig {
             .colour((32.0, 32.0))
             .validate()
             .map_err(|e| e.in_table("likelihood"))?;
+        crate::limits::at_most(
+            self.likelihood.min_window_px,
+            crate::limits::MAX_IMAGE_SIDE,
+            "longest image side",
+        )
+        .map_err(|m| Error::config(c, "likelihood.min_window_px", m))?;
         let l = &self.likelihood;
         if !(l.window_scale.is_finite() && l.window_scale > 0.0) {
             return Err(Error::config(c, "likelihood.window_scale", "must be > 0"));
@@ -248,6 +254,20 @@ impl FilterTrackConfig {
                 ));
             }
         }
+        use crate::limits::{MAX_PARTICLES_PER_OBJECT, at_most};
+        at_most(
+            self.birth_particles_per_detection,
+            MAX_PARTICLES_PER_OBJECT,
+            "particles per object",
+        )
+        .and_then(|()| {
+            at_most(
+                self.birth_particles_per_detection,
+                self.phd.max_particles,
+                "phd.max_particles",
+            )
+        })
+        .map_err(|m| Error::config(c, "birth_particles_per_detection", m))?;
         Ok(())
     }
 

@@ -83,6 +83,12 @@ impl ParticleFilterConfig {
         if self.particles_per_object == 0 {
             return Err(Error::config(c, "particles_per_object", "must be ≥ 1"));
         }
+        crate::limits::at_most(
+            self.particles_per_object,
+            crate::limits::MAX_PARTICLES_PER_OBJECT,
+            "particles per object",
+        )
+        .map_err(|m| Error::config(c, "particles_per_object", m))?;
         self.motion.validate(c)?;
         for (v, f) in [
             (self.initial_spread_px, "initial_spread_px"),

@@ -13,6 +13,7 @@ use super::resample::ResamplingScheme;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::io::points::{Measurement, PointEstimate};
+use crate::limits::{MAX_MEASUREMENTS_PER_STEP, MAX_PARTICLES_PER_OBJECT, MAX_STEP, at_most};
 use serde::{Deserialize, Serialize};
 
 /// The scenario model and filter settings of `roadtrack filter`. Probabilities default to
@@ -132,6 +133,16 @@ impl PointFilterConfig {
                 "must be ≥ 1",
             ));
         }
+        for (v, f) in [
+            (self.particles_per_target, "particles_per_target"),
+            (
+                self.birth_particles_per_measurement,
+                "birth_particles_per_measurement",
+            ),
+        ] {
+            at_most(v, MAX_PARTICLES_PER_OBJECT, "particles per object")
+                .map_err(|m| Error::config(c, f, m))?;
+        }
         // The PHD filter's fields derive from these: name the one the file spells.
         self.phd_config().validate().map_err(|e| match e {
             Error::InvalidConfig { field, reason, .. } => {
@@ -223,6 +234,30 @@ pub fn filter_points_with_progress(
         return Ok(Vec::new());
     };
     let (first, last) = (first.step, last.step);
+    // Every step from the first to the last is filtered, and one step costs (birth
+    // particles per measurement) × measurements²: both are bounded before the loop (the
+    // CSV reader names the line; measurements built in code are checked here).
+    at_most(
+        last - first,
+        MAX_STEP,
+        "steps from the first to the last measurement",
+    )
+    .map_err(|m| Error::Invalid(format!("measurements: {m}")))?;
+    if let Some(w) = sorted
+        .chunk_by(|a, b| a.step == b.step)
+        .find(|w| w.len() > MAX_MEASUREMENTS_PER_STEP)
+    {
+        return Err(Error::Invalid(format!(
+            "measurements: step {}: {}",
+            w[0].step,
+            at_most(
+                w.len(),
+                MAX_MEASUREMENTS_PER_STEP,
+                "measurements in one step"
+            )
+            .unwrap_err()
+        )));
+    }
     let region = config.region.unwrap_or_else(|| bounding_region(&sorted));
     let mut phd = LabelledPhd::new(config.phd_config(), region, seed)?;
     let sigma = config.measurement_sigma;

@@ -207,6 +207,13 @@ impl MrfConfig {
         if self.max_iterations == 0 {
             return err("max_iterations", "must be at least 1".into());
         }
+        if let Err(m) = crate::limits::at_most(
+            self.max_iterations,
+            crate::limits::MAX_ITERATIONS,
+            "iterations",
+        ) {
+            return err("max_iterations", m);
+        }
         if !(self.moving_fraction > 0.0 && self.moving_fraction <= 1.0) {
             return err(
                 "moving_fraction",

@@ -205,6 +205,16 @@ pub struct RelaxationConfig {
     pub variant: RelaxationVariant,
     /// How probabilities become pairs. Default `argmax` (the paper's).
     pub decision: DecisionRule,
+    /// At most this many real labels per vehicle, in both directions: the nearest inside
+    /// the gate ([`LabelGraph::nearest`]). Default
+    /// [`DEFAULT_MAX_LABELS`](crate::limits::DEFAULT_MAX_LABELS); at most
+    /// [`MAX_LABELS`](crate::limits::MAX_LABELS).
+    pub max_labels: usize,
+    /// At most this many neighbours (eq. 16) per vehicle: the nearest within `R`
+    /// ([`SupportLists::build_nearest`](support::SupportLists::build_nearest)). Default
+    /// [`DEFAULT_MAX_NEIGHBOURS`](crate::limits::DEFAULT_MAX_NEIGHBOURS); at most
+    /// [`MAX_LABELS`](crate::limits::MAX_LABELS).
+    pub max_neighbours: usize,
 }
 
 impl Default for RelaxationConfig {
@@ -220,6 +230,8 @@ impl Default for RelaxationConfig {
             max_iterations: 50,
             variant: RelaxationVariant::ColourBidirectional,
             decision: DecisionRule::Argmax,
+            max_labels: crate::limits::DEFAULT_MAX_LABELS,
+            max_neighbours: crate::limits::DEFAULT_MAX_NEIGHBOURS,
         }
     }
 }
@@ -254,6 +266,22 @@ impl RelaxationConfig {
                     format!("{v} must be finite and non-negative"),
                 ));
             }
+        }
+        use crate::limits::{MAX_ITERATIONS, MAX_LABELS, at_most};
+        at_most(self.max_iterations, MAX_ITERATIONS, "iterations")
+            .map_err(|m| Error::config("RelaxationConfig", "max_iterations", m))?;
+        for (name, v) in [
+            ("max_labels", self.max_labels),
+            ("max_neighbours", self.max_neighbours),
+        ] {
+            if v == 0 {
+                return Err(Error::config(
+                    "RelaxationConfig",
+                    name,
+                    "must be at least 1",
+                ));
+            }
+            at_most(v, MAX_LABELS, name).map_err(|m| Error::config("RelaxationConfig", name, m))?;
         }
         Ok(())
     }

@@ -62,16 +62,19 @@ impl RelaxationProblem {
         let frame2: Vec<&Detection> = order2.iter().map(|&i| &frame2[i as usize]).collect();
         let p: Vec<Point> = frame1.iter().map(|d| d.pos_px).collect();
         let q: Vec<Point> = frame2.iter().map(|d| d.pos_px).collect();
-        let graph = LabelGraph::new(&p, &q, cfg.gate_half_width_px)?;
+        let graph = LabelGraph::nearest(&p, &q, cfg.gate_half_width_px, cfg.max_labels)?;
         let (r, t) = (cfg.neighbour_radius_px, cfg.similar_displacement_px);
+        let nb = cfg.max_neighbours;
         let bidirectional = cfg.variant.bidirectional();
         // The two directions are independent: built side by side (each is also parallel
         // over vehicle blocks, but its final concatenation is serial).
         let (fwd_support, bwd_support) = rayon::join(
-            || SupportLists::build(&p, &graph.fwd_start, &graph.fwd_disp, r, t),
+            || SupportLists::build_nearest(&p, &graph.fwd_start, &graph.fwd_disp, r, t, nb),
             || {
                 bidirectional
-                    .then(|| SupportLists::build(&q, &graph.bwd_start, &graph.bwd_disp, r, t))
+                    .then(|| {
+                        SupportLists::build_nearest(&q, &graph.bwd_start, &graph.bwd_disp, r, t, nb)
+                    })
                     .transpose()
             },
         );

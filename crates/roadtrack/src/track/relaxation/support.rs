@@ -74,6 +74,26 @@ impl SupportLists {
         radius_px: f64,
         similar_px: f64,
     ) -> Result<Self> {
+        Self::build_nearest(owner, start, disp, radius_px, similar_px, usize::MAX)
+    }
+
+    /// [`SupportLists::build`] with at most `max_neighbours` neighbours per vehicle: the
+    /// nearest within `R` (ties to the lower index). With no more than `max_neighbours`
+    /// vehicles within `R` of any vehicle this is exactly [`SupportLists::build`].
+    ///
+    /// # Errors
+    /// As [`SupportLists::build`].
+    // Choice: the support lists hold, per label, the similar labels of every neighbour, so
+    // their size grows with the square of the density; the nearest neighbours carry the
+    // local consistency of eq. 16, and capping them bounds memory and time.
+    pub fn build_nearest(
+        owner: &[Point],
+        start: &[u32],
+        disp: &[[f64; 2]],
+        radius_px: f64,
+        similar_px: f64,
+        max_neighbours: usize,
+    ) -> Result<Self> {
         let grid = PointGrid::new(owner.iter().copied(), radius_px.max(1.0));
         let t2 = similar_px * similar_px;
         let rows = owner.len();
@@ -100,6 +120,19 @@ impl SupportLists {
                         }
                     },
                 );
+                if s.neighbours.len() > max_neighbours && max_neighbours > 0 {
+                    let d2 = |j: u32| {
+                        let b = owner[j as usize];
+                        (a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y)
+                    };
+                    s.neighbours
+                        .select_nth_unstable_by(max_neighbours - 1, |&x, &y| {
+                            d2(x).total_cmp(&d2(y)).then(x.cmp(&y))
+                        });
+                    s.neighbours.truncate(max_neighbours);
+                } else if max_neighbours == 0 {
+                    s.neighbours.clear();
+                }
                 s.neighbours.sort_unstable();
                 s.dx.clear();
                 s.dy.clear();
@@ -265,6 +298,26 @@ mod tests {
             assert!((a - b).abs() < 1e-12, "{s:?}");
         }
         assert_eq!(lists.items, vec![4, 5, 0, 0]);
+        Ok(())
+    }
+
+    #[test]
+    fn nearest_neighbours_bound_the_lists_and_change_nothing_below_the_bound() -> Result<()> {
+        // 300 vehicles in a 60 px square, all neighbours of each other, one label each.
+        let p: Vec<Point> = (0..300u64)
+            .map(|i| Point::new((i * 37 % 60) as f64, (i * 53 % 61) as f64))
+            .collect();
+        let q: Vec<Point> = p.iter().map(|a| Point::new(a.x + 2.0, a.y)).collect();
+        let g = LabelGraph::nearest(&p, &q, 150.0, 1)?;
+        // T = 100 px: every label supports every other.
+        let all = SupportLists::build(&p, &g.fwd_start, &g.fwd_disp, 200.0, 100.0)?;
+        let n = g.n_labels();
+        assert_eq!(all.n_entries(), n * (n - 1));
+        let capped = SupportLists::build_nearest(&p, &g.fwd_start, &g.fwd_disp, 200.0, 100.0, 5)?;
+        assert!(capped.n_entries() <= 5 * n, "{}", capped.n_entries());
+        assert!(capped.n_entries() > 0);
+        let same = SupportLists::build_nearest(&p, &g.fwd_start, &g.fwd_disp, 200.0, 100.0, 299)?;
+        assert_eq!(same, all);
         Ok(())
     }
 

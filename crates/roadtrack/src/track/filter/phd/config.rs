@@ -4,6 +4,7 @@ use super::super::motion::ConstantVelocity;
 use super::super::resample::ResamplingScheme;
 use crate::class::ObjectClass;
 use crate::error::{Error, Result};
+use crate::limits::{MAX_PARTICLES, MAX_PARTICLES_PER_OBJECT, at_most};
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the labelled SMC-PHD filter. `Default` is the paper's Table 9
@@ -172,6 +173,17 @@ impl PhdConfig {
                 "max_particles",
                 "must be ≥ particles_per_object",
             ));
+        }
+        for (v, max, f) in [
+            (
+                self.particles_per_object,
+                MAX_PARTICLES_PER_OBJECT,
+                "particles_per_object",
+            ),
+            (self.max_particles, MAX_PARTICLES, "max_particles"),
+            (self.birth_grid_points, MAX_PARTICLES, "birth_grid_points"),
+        ] {
+            at_most(v, max, f).map_err(|m| Error::config(c, f, m))?;
         }
         prob(self.survival_prob, "survival_prob")?;
         prob(self.detection_prob, "detection_prob")?;

@@ -220,6 +220,21 @@ impl LabelledPhd {
         }
     }
 
+    /// `per_point` birth particles for each of `n_points` points, fewer when that would add
+    /// more than [`PhdConfig::max_particles`] particles in one step.
+    // Choice: the cap on particles also caps one step's births (at least one particle per
+    // point), so a large `birth_particles_per_detection` or a crowded frame cannot grow
+    // the set without bound before resampling; the particle count stays below twice
+    // `max_particles` plus one per point. Below the cap nothing changes.
+    fn births_per_point(&self, per_point: usize, n_points: usize) -> usize {
+        let max = self.config.max_particles;
+        if n_points.saturating_mul(per_point) <= max {
+            per_point
+        } else {
+            (max / n_points.max(1)).max(1)
+        }
+    }
+
     /// Step c), measurement-driven (Ristic, Clark & Vo 2010, the paper's ref. 10): `per_point`
     /// birth particles drawn around each of `points` (Gaussian, standard deviation
     /// `spread`), velocities from the birth prior, importance-weighted so that the birth
@@ -239,10 +254,15 @@ impl LabelledPhd {
         if mu <= 0.0 || per_point == 0 {
             return;
         }
+        let per_point = self.births_per_point(per_point, points.len());
         let s = self.config.birth_speed_sigma;
         let area = self.region.area();
         if points.is_empty() || spread <= 0.0 {
-            let n = self.config.birth_grid_points.max(per_point);
+            let n = self
+                .config
+                .birth_grid_points
+                .max(per_point)
+                .min(self.config.max_particles);
             for _ in 0..n {
                 let pos = Point::new(
                     self.region.x0 + self.region.width() * self.rng.random::<f64>(),
@@ -299,6 +319,7 @@ impl LabelledPhd {
         if points.is_empty() || per_point == 0 || mu <= 0.0 {
             return;
         }
+        let per_point = self.births_per_point(per_point, points.len());
         let w = (mu / points.len() as f64).min(1.0) / per_point as f64;
         let s = self.config.birth_speed_sigma;
         for &z in points {
@@ -416,34 +437,56 @@ impl LabelledPhd {
         let m = z.len();
         let norm = pd / (2.0 * std::f64::consts::PI * sigma * sigma);
         let inv2s2 = 0.5 / (sigma * sigma);
-        // g is n × m, row-major; rows are computed in parallel, sums below are sequential.
-        let mut g = vec![0.0; n * m];
-        if m > 0 {
-            g.par_chunks_mut(m)
-                .zip(p.h.par_iter_mut())
-                .enumerate()
-                .for_each(|(i, (row, h))| {
-                    let (x, y) = (p.x[i], p.y[i]);
-                    let mut best = 0.0f64;
-                    for (j, zj) in z.iter().enumerate() {
-                        let e = (-((x - zj.x).powi(2) + (y - zj.y).powi(2)) * inv2s2).exp();
-                        row[j] = norm * e;
-                        best = best.max(e);
-                    }
-                    *h = best;
-                });
-        } else {
+        let e = |i: usize, zj: &Point| {
+            (-((p.x[i] - zj.x).powi(2) + (p.y[i] - zj.y).powi(2)) * inv2s2).exp()
+        };
+        if m == 0 {
             p.h.iter_mut().for_each(|h| *h = 0.0);
         }
+        // g is n × m; it is computed a block of rows at a time (in parallel) and computed
+        // again for ψ instead of being kept whole, so memory stays `ROWS × m` however many
+        // particles and measurements there are (n × m reached 8 GB). The sums run in the
+        // same order as with the whole matrix, so the result is bit-identical.
+        const ROWS: usize = 4096;
         let mut c = vec![0.0; m];
-        for i in 0..n {
-            for j in 0..m {
-                c[j] += g[i * m + j] * p.w[i];
+        let mut g = vec![0.0; ROWS.min(n) * m];
+        if m > 0 {
+            for start in (0..n).step_by(ROWS) {
+                let rows = ROWS.min(n - start);
+                let block = &mut g[..rows * m];
+                block
+                    .par_chunks_mut(m)
+                    .zip(p.h[start..start + rows].par_iter_mut())
+                    .enumerate()
+                    .for_each(|(k, (row, h))| {
+                        let mut best = 0.0f64;
+                        for (j, zj) in z.iter().enumerate() {
+                            let ej = e(start + k, zj);
+                            row[j] = norm * ej;
+                            best = best.max(ej);
+                        }
+                        *h = best;
+                    });
+                for k in 0..rows {
+                    let w = p.w[start + k];
+                    for j in 0..m {
+                        c[j] += block[k * m + j] * w;
+                    }
+                }
             }
         }
-        for i in 0..n {
-            let psi: f64 = (0..m).map(|j| g[i * m + j] / (kappa + c[j])).sum();
-            p.w[i] *= (1.0 - pd) + psi;
+        drop(g);
+        let psi: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                z.iter()
+                    .zip(&c)
+                    .map(|(zj, cj)| norm * e(i, zj) / (kappa + cj))
+                    .sum()
+            })
+            .collect();
+        for (w, psi) in p.w.iter_mut().zip(psi) {
+            *w *= (1.0 - pd) + psi;
         }
     }
 

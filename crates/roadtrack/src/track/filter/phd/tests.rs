@@ -445,3 +445,51 @@ fn kmeans_separates_two_groups() {
     let a = kmeans(&pts, &[1.0; 10], 2);
     assert!(a[..5].iter().all(|&x| x == a[0]) && a[5..].iter().all(|&x| x == a[5]) && a[0] != a[5]);
 }
+
+#[test]
+fn one_steps_births_never_exceed_max_particles() -> Result<()> {
+    let cfg = PhdConfig {
+        max_particles: 1_000,
+        ..PhdConfig::default()
+    };
+    let region = SurveillanceRegion::new(0.0, 0.0, 500.0, 500.0);
+    let points: Vec<crate::geometry::Point> = (0..50)
+        .map(|i| crate::geometry::Point::new(10.0 * f64::from(i), 250.0))
+        .collect();
+    // 50 points × 70 000 particles asked for: 1 000 at most, 20 per point.
+    let mut f = LabelledPhd::new(cfg.clone(), region, 1)?;
+    f.add_births_at(&points, 70_000, 4.0);
+    assert_eq!(f.particles().len(), 1_000);
+    let mut f = LabelledPhd::new(cfg.clone(), region, 1)?;
+    f.add_measurement_births(&points, 70_000, 4.0, 0.0);
+    assert!(f.particles().len() <= 1_000, "{}", f.particles().len());
+    // Below the cap the count asked for is the count drawn.
+    let mut f = LabelledPhd::new(cfg, region, 1)?;
+    f.add_births_at(&points[..2], 70, 4.0);
+    assert_eq!(f.particles().len(), 140);
+    Ok(())
+}
+
+#[test]
+fn particle_counts_above_the_limits_are_refused() {
+    for (cfg, field) in [
+        (
+            PhdConfig {
+                particles_per_object: 200_000,
+                max_particles: 400_000,
+                ..PhdConfig::default()
+            },
+            "particles_per_object",
+        ),
+        (
+            PhdConfig {
+                max_particles: 100_000_000,
+                ..PhdConfig::default()
+            },
+            "max_particles",
+        ),
+    ] {
+        let e = cfg.validate().expect_err(field).to_string();
+        assert!(e.contains(field) && e.contains("exceeds the limit"), "{e}");
+    }
+}
