@@ -260,7 +260,8 @@ fn filter_refuses_particles_per_target_above_the_limit() {
         &"-o",
         &d.path().join("e.csv"),
     ]);
-    refused(&o, 1, &["particles_per_target", "100000"]);
+    // A flag: a usage error naming it.
+    refused(&o, 2, &["--particles-per-target", "100000"]);
 }
 
 // 6. match: a dense scene stays bounded; the bounds themselves are checked.

@@ -210,16 +210,16 @@ impl FilterTrackConfig {
             .map_err(|e| e.in_table("detector"))?;
         self.pf.validate().map_err(|e| e.in_table("pf"))?;
         self.phd.validate().map_err(|e| e.in_table("phd"))?;
-        self.likelihood
-            .colour((32.0, 32.0))
-            .validate()
-            .map_err(|e| e.in_table("likelihood"))?;
         crate::limits::at_most(
             self.likelihood.min_window_px,
             crate::limits::MAX_IMAGE_SIDE,
             "longest image side",
         )
         .map_err(|m| Error::config(c, "likelihood.min_window_px", m))?;
+        self.likelihood
+            .colour((32.0, 32.0))
+            .validate()
+            .map_err(|e| e.in_table("likelihood"))?;
         let l = &self.likelihood;
         if !(l.window_scale.is_finite() && l.window_scale > 0.0) {
             return Err(Error::config(c, "likelihood.window_scale", "must be > 0"));
