@@ -3,7 +3,7 @@
 
 use super::super::resample::resample;
 use super::super::{Particles, SurveillanceRegion};
-use super::{BatchEval, LabelEstimate, PhdConfig};
+use super::{BatchEval, LabelEstimate, LabelUpdate, PhdConfig};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::rng::{Rng, Stream, rng_for};
@@ -373,8 +373,16 @@ impl LabelledPhd {
             }
         }
         let (pd, kappa) = (self.config.detection_prob, self.config.clutter_intensity);
+        let bernoulli = self.config.label_update == LabelUpdate::Bernoulli;
+        let mut factor = Vec::new();
         let p = &mut self.particles;
         for (i, cell) in cells.iter().enumerate() {
+            if bernoulli && p.label[i] != 0 {
+                // The label's own observation: clutter κ is the only alternative.
+                factor.push((1.0 - pd) + pd * p.h[i] / kappa);
+                continue;
+            }
+            factor.push(0.0);
             let c = if p.label[i] == 0 {
                 c_cell.get(cell)
             } else {
@@ -384,6 +392,44 @@ impl LabelledPhd {
             .unwrap_or(0.0);
             let psi = p.h[i] / (kappa + c);
             p.w[i] *= (1.0 - pd) + pd * psi;
+        }
+        if bernoulli {
+            self.bernoulli_labels(&factor);
+        }
+    }
+
+    /// [`LabelUpdate::Bernoulli`]: each label `ℓ` is a Bernoulli component with existence
+    /// `r = min(W̃_ℓ, 1)`; with `f_i` the particle's likelihood ratio against clutter
+    /// (`factor`, read for labelled particles only), `1 − Δ = Σ_{i∈ℓ} w̃_i f_i / W̃_ℓ`,
+    /// `r' = r(1 − Δ)/(1 − r + r(1 − Δ))` and `ŵ_i = w̃_i f_i · r' / Σ_{i∈ℓ} w̃_i f_i`
+    /// (the Bernoulli filter's update, Ristic, Vo, Vo & Farina 2013, eqs. 43–44).
+    fn bernoulli_labels(&mut self, factor: &[f64]) {
+        let p = &mut self.particles;
+        // label → (W̃, Σ w̃ f), in particle order (deterministic).
+        let mut sums: BTreeMap<u32, (f64, f64)> = BTreeMap::new();
+        for i in 0..p.len() {
+            if p.label[i] != 0 {
+                let e = sums.entry(p.label[i]).or_insert((0.0, 0.0));
+                e.0 += p.w[i];
+                e.1 += p.w[i] * factor[i];
+            }
+        }
+        let scale: BTreeMap<u32, f64> = sums
+            .into_iter()
+            .map(|(l, (w, s))| {
+                if !(w > 0.0 && s > 0.0 && s.is_finite()) {
+                    return (l, 0.0);
+                }
+                let r = w.min(1.0);
+                let ratio = s / w;
+                let r_post = r * ratio / (1.0 - r + r * ratio);
+                (l, r_post / s)
+            })
+            .collect();
+        for i in 0..p.len() {
+            if let Some(k) = scale.get(&p.label[i]) {
+                p.w[i] *= factor[i] * k;
+            }
         }
     }
 
@@ -441,10 +487,48 @@ impl LabelledPhd {
                 c[j] += g[i * m + j] * p.w[i];
             }
         }
-        for i in 0..n {
-            let psi: f64 = (0..m).map(|j| g[i * m + j] / (kappa + c[j])).sum();
-            p.w[i] *= (1.0 - pd) + psi;
+        if self.config.label_update == LabelUpdate::Phd {
+            for i in 0..n {
+                let psi: f64 = (0..m).map(|j| g[i * m + j] / (kappa + c[j])).sum();
+                p.w[i] *= (1.0 - pd) + psi;
+            }
+            return;
         }
+        // Bernoulli labels: C_ℓ(z_j) per label; a label's alternative explanation of z_j
+        // is clutter plus every other particle, κ + C(z_j) − C_ℓ(z_j).
+        let mut slot: BTreeMap<u32, usize> = BTreeMap::new();
+        for &l in &p.label {
+            if l != 0 {
+                let next = slot.len();
+                slot.entry(l).or_insert(next);
+            }
+        }
+        let mut c_label = vec![0.0; slot.len() * m];
+        for i in 0..n {
+            if let Some(&s) = slot.get(&p.label[i]) {
+                for j in 0..m {
+                    c_label[s * m + j] += g[i * m + j] * p.w[i];
+                }
+            }
+        }
+        let mut factor = vec![0.0; n];
+        for i in 0..n {
+            let row = &g[i * m..(i + 1) * m];
+            match slot.get(&p.label[i]) {
+                None => {
+                    let psi: f64 = (0..m).map(|j| row[j] / (kappa + c[j])).sum();
+                    p.w[i] *= (1.0 - pd) + psi;
+                }
+                Some(&s) => {
+                    let own = &c_label[s * m..(s + 1) * m];
+                    factor[i] = (1.0 - pd)
+                        + (0..m)
+                            .map(|j| row[j] / (kappa + (c[j] - own[j]).max(0.0)))
+                            .sum::<f64>();
+                }
+            }
+        }
+        self.bernoulli_labels(&factor);
     }
 
     /// Step e): the label rules in the paper's order.
