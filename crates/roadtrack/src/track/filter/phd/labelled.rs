@@ -350,7 +350,10 @@ impl LabelledPhd {
     /// ```
     ///
     /// `h` must already be in [`Particles::h`]. An unlabelled particle's observation is its
-    /// mesh cell, with `C` summed over every particle in the cell, labelled or not.
+    /// mesh cell, with `C` summed over every particle in the cell, labelled or not. With
+    /// [`LabelUpdate::Bernoulli`] labelled particles are updated as one Bernoulli component
+    /// per label with the likelihood ratio `f_i = (1 − p_D) + p_D·h_i/κ`
+    /// (`bernoulli_labels`).
     // Choice: the paper computes C(y) "per label" but does not say what observation an
     // unlabelled (birth) particle belongs to. Taking each alone gives every birth particle
     // on an object a whole object's weight; taking all unlabelled particles together lets
@@ -402,7 +405,8 @@ impl LabelledPhd {
     /// `r = min(W̃_ℓ, 1)`; with `f_i` the particle's likelihood ratio against clutter
     /// (`factor`, read for labelled particles only), `1 − Δ = Σ_{i∈ℓ} w̃_i f_i / W̃_ℓ`,
     /// `r' = r(1 − Δ)/(1 − r + r(1 − Δ))` and `ŵ_i = w̃_i f_i · r' / Σ_{i∈ℓ} w̃_i f_i`
-    /// (the Bernoulli filter's update, Ristic, Vo, Vo & Farina 2013, eqs. 43–44).
+    /// (the Bernoulli filter's update; Ristic, Vo, Vo & Farina, "A tutorial on Bernoulli
+    /// filters", Proc. IEEE 2013).
     fn bernoulli_labels(&mut self, factor: &[f64]) {
         let p = &mut self.particles;
         // label → (W̃, Σ w̃ f), in particle order (deterministic).
@@ -450,7 +454,9 @@ impl LabelledPhd {
     /// ```
     ///
     /// with `κ = clutter_rate / area`. `h_i = max_j exp(−|z_j − x_i|²/(2σ²))` is stored for
-    /// the label rules.
+    /// the label rules. With [`LabelUpdate::Bernoulli`] labelled particles are updated as
+    /// one Bernoulli component per label with `f_i = (1 − p_D) + Σ_j g_ij/(κ + C_j − C_ℓ,j)`
+    /// (`bernoulli_labels`); unlabelled ones as above.
     // Choice: point measurements are genuine observations, so C(z) sums over all particles
     // and carries p_D (Vo et al. 2003, the paper's ref. 9), which makes one detected object
     // contribute one unit of weight; METHODS.md's per-label C without p_D is the image form.

@@ -476,6 +476,42 @@ fn phd_weight_sum_tracks_the_object_count_from_detections() -> Result<()> {
 }
 
 #[test]
+fn bernoulli_labels_hold_one_object_each_from_detections() -> Result<()> {
+    // The scene of the test above with LabelUpdate::Bernoulli: each tracked object's label
+    // settles near 1 instead of (1 − p_D)·p_s·W + p_D·C/(κ + C). (Reported scores are the
+    // label weights capped at 1.)
+    let (frames, starts) = squares(15);
+    let boxes: Vec<BBox> = starts
+        .iter()
+        .map(|&p| BBox::from_centre(p, 20.0, 20.0))
+        .collect();
+    let lik = ColourLikelihood::from_boxes(matched_colour(), &frames[0].image, &boxes)?;
+    let cfg = PhdConfig {
+        label_update: LabelUpdate::Bernoulli,
+        ..PhdConfig::default()
+    };
+    let mut t = PhdTracker::new(cfg, Box::new(lik), 3)?;
+    let dets: Vec<crate::detection::Detection> = starts
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| crate::detection::Detection::at(1, k as u64 + 1, p))
+        .collect();
+    t.start_from_detections(&dets);
+    for f in &frames {
+        let out = t.step(f)?;
+        let ids: Vec<u64> = out.iter().map(|p| p.id).collect();
+        assert_eq!(ids, vec![1, 2, 3], "frame {}", f.index);
+        // (The paper's form above: at most 0.88 per label.) The rest of Σw is unlabelled grid
+        // birth mass, PHD-updated as before (≈ 0.4 here).
+        let w: Vec<f64> = out.iter().map(|p| p.score).collect();
+        assert!(w.iter().all(|&w| w > 0.9), "frame {}: {w:?}", f.index);
+        let n = t.expected_count();
+        assert!((3.0..=3.6).contains(&n), "frame {}: Σw {n:.2}", f.index);
+    }
+    Ok(())
+}
+
+#[test]
 fn phd_tracker_finds_objects_from_grid_births_alone() -> Result<()> {
     let (frames, starts) = squares(20);
     let boxes: Vec<BBox> = starts
