@@ -411,11 +411,11 @@ impl LabelledPhd {
         let p = &mut self.particles;
         // label → (W̃, Σ w̃ f), in particle order (deterministic).
         let mut sums: BTreeMap<u32, (f64, f64)> = BTreeMap::new();
-        for i in 0..p.len() {
-            if p.label[i] != 0 {
-                let e = sums.entry(p.label[i]).or_insert((0.0, 0.0));
-                e.0 += p.w[i];
-                e.1 += p.w[i] * factor[i];
+        for ((&l, &w), &f) in p.label.iter().zip(&p.w).zip(factor) {
+            if l != 0 {
+                let e = sums.entry(l).or_insert((0.0, 0.0));
+                e.0 += w;
+                e.1 += w * f;
             }
         }
         let scale: BTreeMap<u32, f64> = sums
@@ -430,9 +430,9 @@ impl LabelledPhd {
                 (l, r_post / s)
             })
             .collect();
-        for i in 0..p.len() {
-            if let Some(k) = scale.get(&p.label[i]) {
-                p.w[i] *= factor[i] * k;
+        for ((w, l), &f) in p.w.iter_mut().zip(&p.label).zip(factor) {
+            if let Some(k) = scale.get(l) {
+                *w *= f * k;
             }
         }
     }
