@@ -91,7 +91,7 @@ pub struct PointFilterConfig {
     // Choice: 0.3 rather than 0.2: with the scenario's small process noise (0.1) the
     // copies of a label's particles collapse onto one velocity, the label lags its target
     // and its detections count as clutter; 0.3 lowered the mean OSPA over seeds 1, 2, 3, 7
-    // and 11 from 3.98 to 3.60 (docs/FILTERS.md "Expected count").
+    // and 11 from 4.05 to 3.60 (docs/FILTERS.md "Expected count").
     pub roughening: f64,
 }
 
