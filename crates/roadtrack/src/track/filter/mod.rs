@@ -24,8 +24,8 @@ pub use crate::geometry::SurveillanceRegion;
 pub use config::{FilterMethod, FilterTrackConfig};
 pub use motion::{ConstantVelocity, VelocityNoise};
 pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
-pub use phd::{LabelledPhd, PhdConfig, PhdTracker};
-pub use points::{PointFilterConfig, filter_points};
+pub use phd::{LabelUpdate, LabelledPhd, PhdConfig, PhdTracker};
+pub use points::{BirthProposal, PointFilterConfig, filter_points};
 pub use resample::ResamplingScheme;
 pub use tracker::{FilterTracker, FrameCount};
 

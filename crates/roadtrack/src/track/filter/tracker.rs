@@ -550,6 +550,102 @@ mod tests {
         Ok(())
     }
 
+    /// Mean true count, mean Σw and mean |Σw − true count| of the PHD tracker on the
+    /// crossing scene with pedestrians only (docs/EXPERIMENTS.md "Filters on image
+    /// sequences": the setting, truth rule and tracker config of `filter_experiments`).
+    fn crossing_counts(
+        frames: u32,
+        seed: u64,
+        update: crate::track::filter::phd::LabelUpdate,
+        kind: LikelihoodKind,
+    ) -> Result<(f64, f64, f64)> {
+        let mut sim = SimConfig {
+            scene: SceneKind::Crossing,
+            view: ViewKind::Oblique,
+            frames,
+            ..Default::default()
+        };
+        sim.crossing.inflow_veh_per_h_per_direction = 0.0;
+        let mut cfg = FilterTrackConfig::default();
+        cfg.phd.motion = crate::track::filter::motion::ConstantVelocity::proportional(0.2, 1.0);
+        cfg.phd.class = ObjectClass::Pedestrian;
+        cfg.phd.label_update = update;
+        cfg.likelihood.kind = kind;
+        let (mut images, mut truth) = (Vec::new(), Vec::new());
+        for step in Simulation::new(&sim, seed)? {
+            let step = step?;
+            images.push(step.frame);
+            truth.extend(step.truth);
+        }
+        let min_area = f64::from(cfg.detector.regions.min_area_px);
+        let detector = BackgroundDetector::bootstrap(
+            cfg.detector.clone(),
+            images.iter().cloned().map(Ok),
+            Some(frames),
+        )?;
+        let mut tracker = FilterTracker::new(FilterMethod::Phd, &cfg, seed, None)?;
+        tracker.record_counts();
+        run_frames(
+            Some(Box::new(detector)),
+            Box::new(&mut tracker),
+            images.iter().cloned().map(Ok),
+        )?;
+        let (mut t_sum, mut e_sum, mut abs_sum) = (0.0, 0.0, 0.0);
+        for c in tracker.counts() {
+            let n = truth
+                .iter()
+                .filter(|t| {
+                    t.frame == c.frame
+                        && t.visibility >= 0.3
+                        && t.bbox.width * t.bbox.height >= min_area
+                })
+                .count() as f64;
+            t_sum += n;
+            e_sum += c.expected;
+            abs_sum += (c.expected - n).abs();
+        }
+        let n = tracker.counts().len().max(1) as f64;
+        Ok((t_sum / n, e_sum / n, abs_sum / n))
+    }
+
+    /// The count experiment of docs/EXPERIMENTS.md (issue 14): both label updates, both
+    /// likelihoods, seeds 1–3, 200 frames. Run with
+    /// `cargo test -p roadtrack --lib crossing_count_experiment -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "experiment, ~3 min"]
+    fn crossing_count_experiment() -> Result<()> {
+        use crate::track::filter::phd::LabelUpdate;
+        for kind in [LikelihoodKind::Colour, LikelihoodKind::ColourForeground] {
+            for update in [LabelUpdate::Phd, LabelUpdate::Bernoulli] {
+                let runs: Vec<(f64, f64, f64)> = (1..=3)
+                    .map(|seed| crossing_counts(200, seed, update, kind))
+                    .collect::<Result<_>>()?;
+                let mean = |f: fn(&(f64, f64, f64)) -> f64| runs.iter().map(f).sum::<f64>() / 3.0;
+                println!(
+                    "{kind:?} {update:?}: mean count {:.2} ({:.2}), count MAE {:.2}; per seed {runs:.2?}",
+                    mean(|r| r.1),
+                    mean(|r| r.0),
+                    mean(|r| r.2)
+                );
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn bernoulli_labels_bring_the_crossing_count_closer_to_the_truth() -> Result<()> {
+        use crate::track::filter::phd::LabelUpdate;
+        let (truth, phd, phd_mae) =
+            crossing_counts(60, 1, LabelUpdate::Phd, LikelihoodKind::Colour)?;
+        let (_, bern, bern_mae) =
+            crossing_counts(60, 1, LabelUpdate::Bernoulli, LikelihoodKind::Colour)?;
+        assert!(
+            bern > phd && bern_mae < phd_mae,
+            "truth {truth:.2}: PHD {phd:.2} (MAE {phd_mae:.2}), Bernoulli {bern:.2} (MAE {bern_mae:.2})"
+        );
+        Ok(())
+    }
+
     #[test]
     fn pf_follows_each_car() -> Result<()> {
         let (frames, truth) = three_cars(24)?;

@@ -3,7 +3,7 @@
 
 use super::super::resample::resample;
 use super::super::{Particles, SurveillanceRegion};
-use super::{BatchEval, LabelEstimate, PhdConfig};
+use super::{BatchEval, LabelEstimate, LabelUpdate, PhdConfig};
 use crate::error::{Error, Result};
 use crate::geometry::Point;
 use crate::rng::{Rng, Stream, rng_for};
@@ -371,7 +371,10 @@ impl LabelledPhd {
     /// ```
     ///
     /// `h` must already be in [`Particles::h`]. An unlabelled particle's observation is its
-    /// mesh cell, with `C` summed over every particle in the cell, labelled or not.
+    /// mesh cell, with `C` summed over every particle in the cell, labelled or not. With
+    /// [`LabelUpdate::Bernoulli`] labelled particles are updated as one Bernoulli component
+    /// per label with the likelihood ratio `f_i = (1 − p_D) + p_D·h_i/κ`
+    /// (`bernoulli_labels`).
     // Choice: the paper computes C(y) "per label" but does not say what observation an
     // unlabelled (birth) particle belongs to. Taking each alone gives every birth particle
     // on an object a whole object's weight; taking all unlabelled particles together lets
@@ -394,8 +397,16 @@ impl LabelledPhd {
             }
         }
         let (pd, kappa) = (self.config.detection_prob, self.config.clutter_intensity);
+        let bernoulli = self.config.label_update == LabelUpdate::Bernoulli;
+        let mut factor = Vec::new();
         let p = &mut self.particles;
         for (i, cell) in cells.iter().enumerate() {
+            if bernoulli && p.label[i] != 0 {
+                // The label's own observation: clutter κ is the only alternative.
+                factor.push((1.0 - pd) + pd * p.h[i] / kappa);
+                continue;
+            }
+            factor.push(0.0);
             let c = if p.label[i] == 0 {
                 c_cell.get(cell)
             } else {
@@ -405,6 +416,45 @@ impl LabelledPhd {
             .unwrap_or(0.0);
             let psi = p.h[i] / (kappa + c);
             p.w[i] *= (1.0 - pd) + pd * psi;
+        }
+        if bernoulli {
+            self.bernoulli_labels(&factor);
+        }
+    }
+
+    /// [`LabelUpdate::Bernoulli`]: each label `ℓ` is a Bernoulli component with existence
+    /// `r = min(W̃_ℓ, 1)`; with `f_i` the particle's likelihood ratio against clutter
+    /// (`factor`, read for labelled particles only), `1 − Δ = Σ_{i∈ℓ} w̃_i f_i / W̃_ℓ`,
+    /// `r' = r(1 − Δ)/(1 − r + r(1 − Δ))` and `ŵ_i = w̃_i f_i · r' / Σ_{i∈ℓ} w̃_i f_i`
+    /// (the Bernoulli filter's update; Ristic, Vo, Vo & Farina, "A tutorial on Bernoulli
+    /// filters", Proc. IEEE 2013).
+    fn bernoulli_labels(&mut self, factor: &[f64]) {
+        let p = &mut self.particles;
+        // label → (W̃, Σ w̃ f), in particle order (deterministic).
+        let mut sums: BTreeMap<u32, (f64, f64)> = BTreeMap::new();
+        for ((&l, &w), &f) in p.label.iter().zip(&p.w).zip(factor) {
+            if l != 0 {
+                let e = sums.entry(l).or_insert((0.0, 0.0));
+                e.0 += w;
+                e.1 += w * f;
+            }
+        }
+        let scale: BTreeMap<u32, f64> = sums
+            .into_iter()
+            .map(|(l, (w, s))| {
+                if !(w > 0.0 && s > 0.0 && s.is_finite()) {
+                    return (l, 0.0);
+                }
+                let r = w.min(1.0);
+                let ratio = s / w;
+                let r_post = r * ratio / (1.0 - r + r * ratio);
+                (l, r_post / s)
+            })
+            .collect();
+        for ((w, l), &f) in p.w.iter_mut().zip(&p.label).zip(factor) {
+            if let Some(k) = scale.get(l) {
+                *w *= f * k;
+            }
         }
     }
 
@@ -425,7 +475,9 @@ impl LabelledPhd {
     /// ```
     ///
     /// with `κ = clutter_rate / area`. `h_i = max_j exp(−|z_j − x_i|²/(2σ²))` is stored for
-    /// the label rules.
+    /// the label rules. With [`LabelUpdate::Bernoulli`] labelled particles are updated as
+    /// one Bernoulli component per label with `f_i = (1 − p_D) + Σ_j g_ij/(κ + C_j − C_ℓ,j)`
+    /// (`bernoulli_labels`); unlabelled ones as above.
     // Choice: point measurements are genuine observations, so C(z) sums over all particles
     // and carries p_D (Vo et al. 2003, the paper's ref. 9), which makes one detected object
     // contribute one unit of weight; METHODS.md's per-label C without p_D is the image form.
@@ -476,18 +528,52 @@ impl LabelledPhd {
             }
         }
         drop(g);
-        let psi: Vec<f64> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                z.iter()
-                    .zip(&c)
-                    .map(|(zj, cj)| norm * e(i, zj) / (kappa + cj))
-                    .sum()
-            })
-            .collect();
-        for (w, psi) in p.w.iter_mut().zip(psi) {
-            *w *= (1.0 - pd) + psi;
+        // One entry of g, computed again (bit-identical to the block above).
+        let g_at = |i: usize, j: usize| norm * e(i, &z[j]);
+        if self.config.label_update == LabelUpdate::Phd {
+            let psi: Vec<f64> = (0..n)
+                .into_par_iter()
+                .map(|i| (0..m).map(|j| g_at(i, j) / (kappa + c[j])).sum())
+                .collect();
+            for (w, psi) in p.w.iter_mut().zip(psi) {
+                *w *= (1.0 - pd) + psi;
+            }
+            return;
         }
+        // Bernoulli labels: C_ℓ(z_j) per label; a label's alternative explanation of z_j
+        // is clutter plus every other particle, κ + C(z_j) − C_ℓ(z_j).
+        let mut slot: BTreeMap<u32, usize> = BTreeMap::new();
+        for &l in &p.label {
+            if l != 0 {
+                let next = slot.len();
+                slot.entry(l).or_insert(next);
+            }
+        }
+        let mut c_label = vec![0.0; slot.len() * m];
+        for i in 0..n {
+            if let Some(&s) = slot.get(&p.label[i]) {
+                for j in 0..m {
+                    c_label[s * m + j] += g_at(i, j) * p.w[i];
+                }
+            }
+        }
+        let mut factor = vec![0.0; n];
+        for i in 0..n {
+            match slot.get(&p.label[i]) {
+                None => {
+                    let psi: f64 = (0..m).map(|j| g_at(i, j) / (kappa + c[j])).sum();
+                    p.w[i] *= (1.0 - pd) + psi;
+                }
+                Some(&s) => {
+                    let own = &c_label[s * m..(s + 1) * m];
+                    factor[i] = (1.0 - pd)
+                        + (0..m)
+                            .map(|j| g_at(i, j) / (kappa + (c[j] - own[j]).max(0.0)))
+                            .sum::<f64>();
+                }
+            }
+        }
+        self.bernoulli_labels(&factor);
     }
 
     /// Step e): the label rules in the paper's order.

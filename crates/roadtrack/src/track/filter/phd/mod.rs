@@ -28,7 +28,7 @@ mod tests;
 mod tracker;
 
 pub use super::FilterStageTimes;
-pub use config::PhdConfig;
+pub use config::{LabelUpdate, PhdConfig};
 pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;

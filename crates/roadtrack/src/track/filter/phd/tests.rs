@@ -282,6 +282,99 @@ fn point_update_gives_one_unit_per_measurement_without_clutter() -> Result<()> {
     Ok(())
 }
 
+fn bernoulli_filter(region: SurveillanceRegion) -> Result<LabelledPhd> {
+    LabelledPhd::new(
+        PhdConfig {
+            label_update: LabelUpdate::Bernoulli,
+            ..PhdConfig::default()
+        },
+        region,
+        1,
+    )
+}
+
+#[test]
+fn bernoulli_labels_keep_their_existence_through_a_missed_detection() -> Result<()> {
+    // Points, p_D = 0.88: a label of predicted weight r = 0.9 whose target is not
+    // measured keeps r(1 − p_D)/(1 − r·p_D) = 0.4821 (the PHD form: (1 − p_D)·r = 0.108);
+    // a measured one goes to ≈ 1 and never above; unlabelled particles keep the PHD update.
+    let region = SurveillanceRegion::new(0.0, 0.0, 640.0, 480.0);
+    let mut f = bernoulli_filter(region)?;
+    let c = Point::new(100.0, 100.0);
+    blob(&mut f, c, Point::default(), 50, 1, 0.0, 0.9 / 50.0);
+    blob(
+        &mut f,
+        Point::new(400.0, 100.0),
+        Point::default(),
+        50,
+        2,
+        0.0,
+        0.9 / 50.0,
+    );
+    blob(
+        &mut f,
+        Point::new(100.5, 100.0),
+        Point::default(),
+        10,
+        0,
+        0.0,
+        1e-4,
+    );
+    f.particles.label[100..].iter_mut().for_each(|l| *l = 0);
+    let kappa_rate = 1.0;
+    f.update_points(&[Point::new(100.5, 100.0)], 2.0, kappa_rate);
+    let sum = |l: u32| -> f64 {
+        (0..f.particles.len())
+            .filter(|&i| f.particles.label[i] == l)
+            .map(|i| f.particles.w[i])
+            .sum()
+    };
+    let (r, pd) = (0.9, 0.88);
+    let missed = r * (1.0 - pd) / (1.0 - r * pd);
+    assert!((sum(2) - missed).abs() < 1e-9, "{} vs {missed}", sum(2));
+    assert!(sum(1) > 0.99 && sum(1) <= 1.0, "{}", sum(1));
+    // The births share the measurement with label 1 as in the PHD: κ + C(z) over all.
+    assert!(sum(0) < 2e-3, "{}", sum(0));
+    Ok(())
+}
+
+#[test]
+fn bernoulli_image_update_weighs_the_label_likelihood_against_kappa() -> Result<()> {
+    let mut f = bernoulli_filter(SurveillanceRegion::new(0.0, 0.0, 640.0, 480.0))?;
+    blob(
+        &mut f,
+        Point::new(100.0, 100.0),
+        Point::default(),
+        10,
+        1,
+        0.3,
+        0.09,
+    );
+    blob(
+        &mut f,
+        Point::new(300.0, 100.0),
+        Point::default(),
+        10,
+        2,
+        0.015,
+        0.09,
+    );
+    f.update_image();
+    let (pd, kappa, r) = (0.88, 0.1, 0.9);
+    let expect = |h: f64| {
+        let ratio = (1.0 - pd) + pd * h / kappa;
+        r * ratio / (1.0 - r + r * ratio)
+    };
+    let w1: f64 = f.particles.w[..10].iter().sum();
+    let w2: f64 = f.particles.w[10..].iter().sum();
+    assert!((w1 - expect(0.3)).abs() < 1e-12, "{w1}");
+    assert!((w2 - expect(0.015)).abs() < 1e-12, "{w2}");
+    // h̄ = 0.3 > κ: the object's label stays near 1 (the paper's form: 0.75); h̄ = 0.015
+    // (background, h̄ < κ): it loses weight at every frame.
+    assert!(w1 > 0.95 && w2 < 0.7, "{w1} {w2}");
+    Ok(())
+}
+
 #[test]
 fn per_label_resampling_keeps_every_weight_and_gives_each_label_rho() -> Result<()> {
     let mut f = filter()?;
@@ -378,6 +471,42 @@ fn phd_weight_sum_tracks_the_object_count_from_detections() -> Result<()> {
         );
         let ids: Vec<u64> = out.iter().map(|p| p.id).collect();
         assert_eq!(ids, vec![1, 2, 3], "frame {}", f.index);
+    }
+    Ok(())
+}
+
+#[test]
+fn bernoulli_labels_hold_one_object_each_from_detections() -> Result<()> {
+    // The scene of the test above with LabelUpdate::Bernoulli: each tracked object's label
+    // settles near 1 instead of (1 − p_D)·p_s·W + p_D·C/(κ + C). (Reported scores are the
+    // label weights capped at 1.)
+    let (frames, starts) = squares(15);
+    let boxes: Vec<BBox> = starts
+        .iter()
+        .map(|&p| BBox::from_centre(p, 20.0, 20.0))
+        .collect();
+    let lik = ColourLikelihood::from_boxes(matched_colour(), &frames[0].image, &boxes)?;
+    let cfg = PhdConfig {
+        label_update: LabelUpdate::Bernoulli,
+        ..PhdConfig::default()
+    };
+    let mut t = PhdTracker::new(cfg, Box::new(lik), 3)?;
+    let dets: Vec<crate::detection::Detection> = starts
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| crate::detection::Detection::at(1, k as u64 + 1, p))
+        .collect();
+    t.start_from_detections(&dets);
+    for f in &frames {
+        let out = t.step(f)?;
+        let ids: Vec<u64> = out.iter().map(|p| p.id).collect();
+        assert_eq!(ids, vec![1, 2, 3], "frame {}", f.index);
+        // (The paper's form above: at most 0.88 per label.) The rest of Σw is unlabelled grid
+        // birth mass, PHD-updated as before (≈ 0.4 here).
+        let w: Vec<f64> = out.iter().map(|p| p.score).collect();
+        assert!(w.iter().all(|&w| w > 0.9), "frame {}: {w:?}", f.index);
+        let n = t.expected_count();
+        assert!((3.0..=3.6).contains(&n), "frame {}: Σw {n:.2}", f.index);
     }
     Ok(())
 }
