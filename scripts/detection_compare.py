@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Detection recall and precision at IoU 0.5 on the simulator's scenes (docs/EXPERIMENTS.md,
 "Detection"): roadtrack's background detector as it was (median start-up, no shadow
-suppression, hold or splitting), as it is by default (with and without the calibration,
-which the region splitting needs), and OpenCV's MOG2 + contours, on the same frames.
+suppression, hold or splitting), as it is by default, and with region splitting
+(`--calibration … --split`), and OpenCV's MOG2 + contours, on the same frames.
 
     python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
         --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
@@ -178,10 +178,10 @@ def main():
             runs = {}
             for name, extra in [
                 ("median (old)", ["--config", old_cfg]),
-                ("default, no calibration", []),
-                ("default + calibration", ["--calibration", f"{seq}/calibration.toml"]),
+                ("default", []),
+                ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
             ]:
-                out = f"{seq}/det_{name.split()[0]}{'_cal' if 'calibration' in name and '+' in name else ''}.csv"
+                out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
                 runs[name] = read_ours(out)
             runs["OpenCV MOG2 + contours"] = mog2(seq, a.frames)

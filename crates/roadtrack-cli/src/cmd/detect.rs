@@ -40,10 +40,13 @@ pub struct Args {
     /// the config.
     #[arg(long, value_enum, value_name = "S")]
     pub startup: Option<StartupArg>,
-    /// Camera calibration TOML (as `roadtrack simulate` writes): regions longer than one
-    /// vehicle at their position are split into the vehicles they hold.
+    /// Camera calibration TOML (as `roadtrack simulate` writes), for --split.
     #[arg(long, value_name = "F.toml")]
     pub calibration: Option<PathBuf>,
+    /// Split regions longer than one vehicle at their position into the vehicles they hold
+    /// (sets [split] enabled; needs --calibration).
+    #[arg(long, requires = "calibration")]
+    pub split: bool,
     /// Also write each frame with the detected boxes drawn, as PNG, into this folder.
     #[arg(long, value_name = "DIR")]
     pub overlay: Option<PathBuf>,
@@ -74,7 +77,10 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         };
     }
     if let Some(path) = &args.calibration {
-        config.calibration = Some(roadtrack::calibration::Calibration::load(path)?);
+        config.calibration = Some(Box::new(roadtrack::calibration::Calibration::load(path)?));
+    }
+    if args.split {
+        config.split.enabled = true;
     }
     if let Some(a) = args.min_area {
         config.regions.min_area_px = a;

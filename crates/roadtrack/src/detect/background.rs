@@ -25,7 +25,7 @@ pub struct BackgroundDetectorConfig {
     /// The camera's ground calibration, when known (`--calibration`; not part of the TOML):
     /// gives the expected vehicle size for [`SplitConfig`].
     #[serde(skip)]
-    pub calibration: Option<Calibration>,
+    pub calibration: Option<Box<Calibration>>,
 }
 
 impl BackgroundDetectorConfig {
@@ -84,7 +84,7 @@ impl BackgroundDetector {
     fn assemble(config: BackgroundDetectorConfig, model: BackgroundModel) -> Self {
         let (w, h) = model.size();
         let splitter = match (&config.calibration, config.split.enabled) {
-            (Some(cal), true) => Some(Splitter::new(config.split.clone(), cal.clone(), w, h)),
+            (Some(cal), true) => Some(Splitter::new(config.split.clone(), (**cal).clone(), w, h)),
             _ => None,
         };
         Self {

@@ -16,7 +16,7 @@ fn arrived_stopped_recall(
     config: BackgroundDetectorConfig,
 ) -> Result<(f64, usize)> {
     let config = BackgroundDetectorConfig {
-        calibration: Some(run.calibration.clone()),
+        calibration: Some(Box::new(run.calibration.clone())),
         ..config
     };
     let n = run.frames.len() as u32;
@@ -52,8 +52,8 @@ fn arrived_stopped_recall(
 
 /// An intersection whose light turns red during the sequence: vehicles drive up and wait
 /// for the rest of it. The median start-up has them in the background (they cover their
-/// pixels in most samples); the default (persistent start-up, hold, shadows, splitting)
-/// keeps them objects.
+/// pixels in most samples); the default (persistent start-up, hold, shadows) with splitting
+/// by the calibration finds them (one region per queue otherwise).
 #[test]
 fn queued_vehicles_at_a_red_light_are_detected() -> Result<()> {
     let sim = SimConfig {
@@ -63,7 +63,9 @@ fn queued_vehicles_at_a_red_light_are_detected() -> Result<()> {
         ..Default::default()
     };
     let run = simulate_in_memory(&sim, QUEUE_SEED)?;
-    let (new, n) = arrived_stopped_recall(&run, BackgroundDetectorConfig::default())?;
+    let mut with_split = BackgroundDetectorConfig::default();
+    with_split.split.enabled = true;
+    let (new, n) = arrived_stopped_recall(&run, with_split)?;
     let (old, _) =
         arrived_stopped_recall(&run, BackgroundDetectorConfig::default().as_published())?;
     assert!(n >= 100, "only {n} stopped-vehicle boxes in the scene");
@@ -180,10 +182,11 @@ fn a_region_of_two_cars_in_a_row_is_split_in_two() -> Result<()> {
     fill(&mut img, 10, 16, 44, 7, |_| [230, 40, 40]);
     let cal = Calibration::from_nadir(0.25, [0.0, 0.0], 0.0)?;
     let detect = |cal: Option<Calibration>| -> Result<Vec<BBox>> {
-        let cfg = BackgroundDetectorConfig {
-            calibration: cal,
+        let mut cfg = BackgroundDetectorConfig {
+            calibration: cal.map(Box::new),
             ..BackgroundDetectorConfig::default()
         };
+        cfg.split.enabled = true;
         let mut det = BackgroundDetector::new(cfg, &[grey(100, 40, road)])?;
         let f = Frame {
             index: 1,

@@ -191,11 +191,11 @@ impl MethodConfig {
     pub fn with_calibration(mut self, calibration: &crate::calibration::Calibration) -> Self {
         match &mut self {
             MethodConfig::Relaxation { detector, .. } => {
-                detector.calibration = Some(calibration.clone());
+                detector.calibration = Some(Box::new(calibration.clone()));
             }
             MethodConfig::Mrf { .. } => {}
             MethodConfig::Filter { config, .. } => {
-                config.detector.calibration = Some(calibration.clone());
+                config.detector.calibration = Some(Box::new(calibration.clone()));
             }
         }
         self
