@@ -225,8 +225,9 @@ pub struct LifecycleArgs {
     #[arg(long, value_name = "N", default_value_t = 10)]
     pub coast_frames: u32,
     /// The method's output as published: no confirmation, coasting, box smoothing or
-    /// per-track class (not with --confirm-hits or --coast-frames), and relaxation
-    /// without its second assignment.
+    /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
+    /// its second assignment, and the background detector as it was (median start-up, no
+    /// shadow suppression, hold or region splitting).
     #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames"])]
     pub as_published: bool,
 }

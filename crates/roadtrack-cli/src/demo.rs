@@ -167,7 +167,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         track_source(
             &seq,
             &SourceOptions::default(),
-            MethodConfig::defaults(method, cfg.seed),
+            MethodConfig::defaults(method, cfg.seed).with_calibration(&calibration),
             None,
             vec![
                 Box::new(LifecycleStage::new(LifecycleConfig::default())?),

@@ -4,6 +4,7 @@ use crate::common::{DetectorArgs, FrameArgs, Ui, load_config, report_skipped};
 use anyhow::{Context, Result};
 use roadtrack::detect::DetectorSpec;
 use roadtrack::detect::background::BackgroundDetectorConfig;
+use roadtrack::detect::background_model::Startup;
 use roadtrack::io::atomic::AtomicDir;
 use roadtrack::io::{detections::write_detections, source};
 use std::path::PathBuf;
@@ -34,6 +35,18 @@ pub struct Args {
     /// Foreground threshold in standard deviations (overrides the config).
     #[arg(long, value_name = "K", value_parser = crate::flags::positive)]
     pub threshold_sigma: Option<f64>,
+    /// How the initial background is made: persistent (the most persistent colour, keeps
+    /// queued vehicles out of the background) or median (the earlier behaviour); overrides
+    /// the config.
+    #[arg(long, value_enum, value_name = "S")]
+    pub startup: Option<StartupArg>,
+    /// Camera calibration TOML (as `roadtrack simulate` writes), for --split.
+    #[arg(long, value_name = "F.toml")]
+    pub calibration: Option<PathBuf>,
+    /// Split regions longer than one vehicle at their position into the vehicles they hold
+    /// (sets [split] enabled; needs --calibration).
+    #[arg(long, requires = "calibration")]
+    pub split: bool,
     /// Also write each frame with the detected boxes drawn, as PNG, into this folder.
     #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub overlay: Option<PathBuf>,
@@ -44,6 +57,15 @@ pub struct Args {
     pub detector: DetectorArgs,
     #[command(flatten)]
     pub frames: FrameArgs,
+}
+
+/// The start-ups of `--startup`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StartupArg {
+    /// The most persistent colour of the sampled frames.
+    Persistent,
+    /// The per-pixel median of the sampled frames.
+    Median,
 }
 
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
@@ -60,6 +82,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         )?;
     }
     let mut config: BackgroundDetectorConfig = load_config(args.config.as_deref())?;
+    if let Some(s) = args.startup {
+        config.background.startup = match s {
+            StartupArg::Persistent => Startup::Persistent,
+            StartupArg::Median => Startup::Median,
+        };
+    }
+    if let Some(path) = &args.calibration {
+        config.calibration = Some(Box::new(roadtrack::calibration::Calibration::load(path)?));
+    }
+    if args.split {
+        config.split.enabled = true;
+    }
     if let Some(a) = args.min_area {
         config.regions.min_area_px = a;
     }

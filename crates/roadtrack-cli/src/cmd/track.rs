@@ -248,6 +248,15 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             }
         }
     };
+    let method = if args.lifecycle.as_published {
+        method.as_published()
+    } else {
+        method
+    };
+    let method = match &calibration {
+        Some(c) => method.with_calibration(c),
+        None => method,
+    };
     let own = method.background_detector();
     let detector = args.detector.spec(&args.input, || Ok(own))?;
     let info = source::open(&args.input, &options)?.info.clone();

@@ -2,7 +2,9 @@
 //! foreground mask → clean-up → regions → detections with centre, box, area, mean colour.
 
 use super::FrameDetections;
-use super::regions::{Region, RegionConfig, clean_mask, extract_regions};
+use super::regions::{Region, RegionConfig, clean_mask, extract_regions_split};
+use super::split::{SplitConfig, Splitter};
+use crate::calibration::Calibration;
 use crate::detect::background_model::{BackgroundConfig, BackgroundModel, sample_frames};
 use crate::detection::Detection;
 use crate::error::Result;
@@ -18,6 +20,12 @@ pub struct BackgroundDetectorConfig {
     pub background: BackgroundConfig,
     /// Mask clean-up and region size limits.
     pub regions: RegionConfig,
+    /// Splitting regions that hold several vehicles (needs `calibration`).
+    pub split: SplitConfig,
+    /// The camera's ground calibration, when known (`--calibration`; not part of the TOML):
+    /// gives the expected vehicle size for [`SplitConfig`].
+    #[serde(skip)]
+    pub calibration: Option<Box<Calibration>>,
 }
 
 impl crate::config::Validate for BackgroundDetectorConfig {
@@ -32,7 +40,16 @@ impl BackgroundDetectorConfig {
         self.background
             .validate()
             .map_err(|e| e.in_table("background"))?;
-        self.regions.validate().map_err(|e| e.in_table("regions"))
+        self.regions.validate().map_err(|e| e.in_table("regions"))?;
+        self.split.validate().map_err(|e| e.in_table("split"))
+    }
+
+    /// The same config with the detector's later additions off (median start-up, no
+    /// shadow suppression, no hold, no splitting): the detector `--as-published` runs use.
+    pub fn as_published(mut self) -> Self {
+        self.background = self.background.as_published();
+        self.split.enabled = false;
+        self
     }
 }
 
@@ -50,6 +67,8 @@ pub struct Foreground {
 pub struct BackgroundDetector {
     config: BackgroundDetectorConfig,
     model: BackgroundModel,
+    /// Made on the first frame from the calibration (needs the image size).
+    splitter: Option<Splitter>,
 }
 
 impl BackgroundDetector {
@@ -57,7 +76,7 @@ impl BackgroundDetector {
     pub fn new(config: BackgroundDetectorConfig, samples: &[RgbImage]) -> Result<Self> {
         config.validate()?;
         let model = BackgroundModel::from_samples(samples, config.background.clone())?;
-        Ok(Self { config, model })
+        Ok(Self::assemble(config, model))
     }
 
     /// A detector over an existing background model (e.g. from
@@ -67,7 +86,20 @@ impl BackgroundDetector {
     /// An invalid config.
     pub fn with_model(config: BackgroundDetectorConfig, model: BackgroundModel) -> Result<Self> {
         config.validate()?;
-        Ok(Self { config, model })
+        Ok(Self::assemble(config, model))
+    }
+
+    fn assemble(config: BackgroundDetectorConfig, model: BackgroundModel) -> Self {
+        let (w, h) = model.size();
+        let splitter = match (&config.calibration, config.split.enabled) {
+            (Some(cal), true) => Some(Splitter::new(config.split.clone(), (**cal).clone(), w, h)),
+            _ => None,
+        };
+        Self {
+            config,
+            model,
+            splitter,
+        }
     }
 
     /// A detector bootstrapped from a frame source: reads `frames` (normally a first pass
@@ -96,7 +128,7 @@ impl BackgroundDetector {
             options,
             config.background.clone(),
         )?;
-        Ok(Self { config, model })
+        Ok(Self::assemble(config, model))
     }
 
     /// The background model.
@@ -104,11 +136,20 @@ impl BackgroundDetector {
         &self.model
     }
 
-    /// Runs on one frame and updates the background.
+    /// Runs on one frame and updates the background: classify, clean the mask, learn
+    /// outside the held (cleaned) foreground, then regions (split by the calibration's
+    /// expected vehicle size when there is one).
     pub fn process(&mut self, frame: &Frame) -> Result<Foreground> {
-        let raw = self.model.apply(frame.index, &frame.image)?;
+        let raw = self.model.classify(frame.index, &frame.image)?;
         let mask = clean_mask(&raw, &self.config.regions);
-        let regions = extract_regions(&mask, &frame.image, &self.config.regions);
+        self.model
+            .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
+        let regions = extract_regions_split(
+            &mask,
+            &frame.image,
+            &self.config.regions,
+            self.splitter.as_ref(),
+        );
         Ok(Foreground { mask, regions })
     }
 

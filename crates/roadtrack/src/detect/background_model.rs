@@ -9,15 +9,23 @@
 //! background, and a stopped object fades in after roughly `1 / foreground_learning_rate`
 //! frames.
 //!
-//! Start-up: the initial mean is the per-pixel median of a handful of frames sampled evenly
-//! over the sequence (a moving object covers a pixel in only a few of them), and the initial
-//! variance is the squared median absolute deviation of those samples, scaled to a standard
-//! deviation (× 1.4826).
+//! Start-up ([`Startup`], module [`super::startup`]): from frames sampled evenly over the
+//! sequence, either the per-pixel median (the earlier behaviour) or the most persistent
+//! colour (the densest cluster of samples), which keeps vehicles that wait in a queue for
+//! a large part of the sequence out of the background as long as no single one of them
+//! covers the pixel longer than the empty road shows.
+//!
+//! Shadows (MOG2's test, Prati et al. 2003): a foreground pixel whose colour is the
+//! background's darkened by a factor in `[shadow_min_ratio, 1)` with small chromaticity
+//! distortion is a shadow, classified background but not learnt.
+//!
+//! Hold ([`BackgroundModel::update_held`]): the detector passes its cleaned mask; the model
+//! does not learn under it until the pixel has been foreground for `hold_still_s`, so a
+//! vehicle that stops stays an object, holes included.
 //!
 //! Choice: a single Gaussian rather than a Gaussian mixture. Our scenes (fixed cameras on
 //! roads, simulated or real) have unimodal backgrounds; a mixture costs 3–5× the time and
-//! its extra modes absorb slow vehicles in queues. Shadows are not modelled: a strong
-//! shadow is foreground (documented limitation in docs/DETECTION.md).
+//! its extra modes absorb slow vehicles in queues.
 
 use crate::error::{Error, Result};
 use image::{GrayImage, RgbImage};
@@ -40,8 +48,30 @@ pub struct BackgroundConfig {
     /// Ceiling on the per-pixel standard deviation, grey levels. Default 40 (keeps flicker
     /// from disabling a pixel).
     pub max_sigma: f64,
-    /// Frames sampled evenly over the sequence for the initial median. Default 25.
+    /// Frames sampled evenly over the sequence for the start-up. Default 25.
     pub bootstrap_frames: u32,
+    /// How the initial background is made from the sampled frames. Default
+    /// [`Startup::Persistent`].
+    pub startup: Startup,
+    /// Shadow suppression: a darkened background colour with the same chromaticity is not
+    /// foreground. Default true.
+    pub shadows: bool,
+    /// Smallest brightness ratio `I·μ / |μ|²` a shadow may have (MOG2's τ). Default 0.5.
+    pub shadow_min_ratio: f64,
+    /// A pixel under the detector's cleaned foreground mask is not learnt until it has been
+    /// foreground this long, seconds (then the foreground rate applies). Default 60; 0
+    /// disables the hold.
+    pub hold_still_s: f64,
+}
+
+/// How the initial background is made from the sampled frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Startup {
+    /// Per-pixel median of each channel (the earlier behaviour; `--as-published`).
+    Median,
+    /// Per-pixel most persistent colour: the mean of the densest cluster of samples.
+    Persistent,
 }
 
 impl Default for BackgroundConfig {
@@ -53,6 +83,10 @@ impl Default for BackgroundConfig {
             min_sigma: 8.0,
             max_sigma: 40.0,
             bootstrap_frames: 25,
+            startup: Startup::Persistent,
+            shadows: true,
+            shadow_min_ratio: 0.5,
+            hold_still_s: 60.0,
         }
     }
 }
@@ -97,6 +131,20 @@ impl BackgroundConfig {
                 ),
             ));
         }
+        if !(self.shadow_min_ratio > 0.0 && self.shadow_min_ratio < 1.0) {
+            return Err(Error::config(
+                "BackgroundConfig",
+                "shadow_min_ratio",
+                format!("must be in (0, 1), found {}", self.shadow_min_ratio),
+            ));
+        }
+        if !(self.hold_still_s >= 0.0 && self.hold_still_s.is_finite()) {
+            return Err(Error::config(
+                "BackgroundConfig",
+                "hold_still_s",
+                format!("must be finite and ≥ 0, found {}", self.hold_still_s),
+            ));
+        }
         if self.bootstrap_frames == 0 {
             return Err(Error::config(
                 "BackgroundConfig",
@@ -112,6 +160,15 @@ impl BackgroundConfig {
         .map_err(|m| Error::config("BackgroundConfig", "bootstrap_frames", m))?;
         Ok(())
     }
+
+    /// The same config with the detector's later additions off: median start-up, no
+    /// shadow suppression, no hold (the behaviour `--as-published` reproduces).
+    pub fn as_published(mut self) -> Self {
+        self.startup = Startup::Median;
+        self.shadows = false;
+        self.hold_still_s = 0.0;
+        self
+    }
 }
 
 /// The running per-pixel Gaussian background.
@@ -124,11 +181,92 @@ pub struct BackgroundModel {
     mean: Vec<f32>,
     /// Variance of one channel, 1 value per pixel.
     var: Vec<f32>,
+    /// The last classification of each pixel ([`CLASS_BG`], [`CLASS_FG`], [`CLASS_SHADOW`]),
+    /// read by [`BackgroundModel::update_held`].
+    class: Vec<u8>,
+    /// Time (s) since which each pixel has been under the detector's cleaned mask without
+    /// a break; NaN when it is not.
+    held_since: Vec<f32>,
+}
+
+const CLASS_BG: u8 = 0;
+const CLASS_FG: u8 = 1;
+const CLASS_SHADOW: u8 = 2;
+
+/// Per-frame constants of the classification and update.
+#[derive(Clone, Copy)]
+struct Params {
+    k2x3: f32,
+    min_var: f32,
+    max_var: f32,
+    a_bg: f32,
+    a_fg: f32,
+    shadows: bool,
+    tau: f32,
+}
+
+impl Params {
+    fn of(c: &BackgroundConfig) -> Self {
+        Self {
+            k2x3: (c.threshold_sigma * c.threshold_sigma * 3.0) as f32,
+            min_var: (c.min_sigma * c.min_sigma) as f32,
+            max_var: (c.max_sigma * c.max_sigma) as f32,
+            a_bg: c.learning_rate as f32,
+            a_fg: c.foreground_learning_rate as f32,
+            shadows: c.shadows,
+            tau: c.shadow_min_ratio as f32,
+        }
+    }
+
+    /// The class of colour `rgb` against mean `mu` and variance `v`, and the colour
+    /// difference with its squared norm.
+    #[inline]
+    fn classify(&self, rgb: &[u8], mu: &[f32], v: f32) -> (u8, [f32; 3], f32) {
+        let d = [
+            f32::from(rgb[0]) - mu[0],
+            f32::from(rgb[1]) - mu[1],
+            f32::from(rgb[2]) - mu[2],
+        ];
+        let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let thr = self.k2x3 * v.max(self.min_var);
+        if dist2 <= thr {
+            return (CLASS_BG, d, dist2);
+        }
+        if self.shadows {
+            // MOG2's shadow test (Prati et al. 2003; OpenCV's detectShadowGMM): the
+            // brightness ratio β = I·μ/|μ|² in [τ, 1) and the chromaticity distortion
+            // |I − βμ|² below the foreground threshold scaled by β².
+            let mu2 = mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2];
+            if mu2 > 0.0 {
+                let i = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
+                let beta = (i[0] * mu[0] + i[1] * mu[1] + i[2] * mu[2]) / mu2;
+                if beta >= self.tau && beta < 1.0 {
+                    let e0 = i[0] - beta * mu[0];
+                    let e1 = i[1] - beta * mu[1];
+                    let e2 = i[2] - beta * mu[2];
+                    if e0 * e0 + e1 * e1 + e2 * e2 <= thr * beta * beta {
+                        return (CLASS_SHADOW, d, dist2);
+                    }
+                }
+            }
+        }
+        (CLASS_FG, d, dist2)
+    }
+
+    /// Moves mean and variance towards the pixel by rate `a`.
+    #[inline]
+    fn learn(&self, mu: &mut [f32], v: &mut f32, d: [f32; 3], dist2: f32, a: f32) {
+        mu[0] += a * d[0];
+        mu[1] += a * d[1];
+        mu[2] += a * d[2];
+        *v = (*v + a * (dist2 / 3.0 - *v)).clamp(self.min_var, self.max_var);
+    }
 }
 
 impl BackgroundModel {
-    /// A model initialised from sample frames: per-pixel median and median absolute
-    /// deviation over `samples` (all of the same size; at least one).
+    /// A model initialised from sample frames (all of the same size; at least one) by the
+    /// config's [`Startup`]: per-pixel median and median absolute deviation, or the most
+    /// persistent colour (see [`super::startup`]).
     pub fn from_samples(samples: &[RgbImage], config: BackgroundConfig) -> Result<Self> {
         config.validate()?;
         let first = samples.first().ok_or_else(|| {
@@ -144,44 +282,30 @@ impl BackgroundModel {
                 });
             }
         }
-        let n_px = width as usize * height as usize;
-        let mut mean = vec![0f32; n_px * 3];
-        let mut var = vec![0f32; n_px];
-        let mut column = Vec::with_capacity(samples.len());
-        let mut dev = Vec::with_capacity(samples.len() * 3);
-        let min_var = (config.min_sigma * config.min_sigma) as f32;
-        let max_var = (config.max_sigma * config.max_sigma) as f32;
-        for p in 0..n_px {
-            dev.clear();
-            for c in 0..3 {
-                column.clear();
-                column.extend(samples.iter().map(|s| s.as_raw()[p * 3 + c]));
-                column.sort_unstable();
-                let med = median_u8(&column);
-                mean[p * 3 + c] = med;
-                dev.extend(column.iter().map(|&v| (f32::from(v) - med).abs()));
-            }
-            dev.sort_unstable_by(f32::total_cmp);
-            let mad = if dev.is_empty() {
-                0.0
-            } else {
-                dev[dev.len() / 2]
-            };
-            let sigma = 1.4826 * mad;
-            var[p] = (sigma * sigma).clamp(min_var, max_var);
-        }
+        let (mean, var) = match config.startup {
+            Startup::Median => super::startup::median(samples, &config),
+            Startup::Persistent => super::startup::persistent(samples, &config),
+        };
+        let n_px = var.len();
         Ok(Self {
             config,
             width,
             height,
             mean,
             var,
+            class: vec![CLASS_BG; n_px],
+            held_since: vec![f32::NAN; n_px],
         })
     }
 
     /// Frame size the model was built for.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// The model's parameters.
+    pub fn config(&self) -> &BackgroundConfig {
+        &self.config
     }
 
     /// The current background estimate as an image.
@@ -195,12 +319,7 @@ impl BackgroundModel {
             .unwrap_or_else(|| RgbImage::new(self.width, self.height))
     }
 
-    /// Classifies every pixel of `image` (255 = foreground, 0 = background), then updates
-    /// the model with `image`.
-    ///
-    /// # Errors
-    /// The image does not have the model's size.
-    pub fn apply(&mut self, frame_index: u32, image: &RgbImage) -> Result<GrayImage> {
+    fn check_size(&self, frame_index: u32, image: &RgbImage) -> Result<()> {
         if image.dimensions() != (self.width, self.height) {
             return Err(Error::FrameSize {
                 frame: frame_index,
@@ -208,11 +327,18 @@ impl BackgroundModel {
                 expected: (self.width, self.height),
             });
         }
-        let k2x3 = (self.config.threshold_sigma * self.config.threshold_sigma * 3.0) as f32;
-        let min_var = (self.config.min_sigma * self.config.min_sigma) as f32;
-        let max_var = (self.config.max_sigma * self.config.max_sigma) as f32;
-        let a_bg = self.config.learning_rate as f32;
-        let a_fg = self.config.foreground_learning_rate as f32;
+        Ok(())
+    }
+
+    /// Classifies every pixel of `image` (255 = foreground, 0 = background or shadow), then
+    /// updates the model with `image` (background at the background rate, foreground and
+    /// shadow at the foreground rate). One pass; no hold (the MRF's use).
+    ///
+    /// # Errors
+    /// The image does not have the model's size.
+    pub fn apply(&mut self, frame_index: u32, image: &RgbImage) -> Result<GrayImage> {
+        self.check_size(frame_index, image)?;
+        let p = Params::of(&self.config);
         let mut mask = vec![0u8; self.var.len()];
         let px = image.as_raw();
         for (((m, mu), v), rgb) in mask
@@ -221,29 +347,93 @@ impl BackgroundModel {
             .zip(self.var.iter_mut())
             .zip(px.chunks_exact(3))
         {
-            let d0 = f32::from(rgb[0]) - mu[0];
-            let d1 = f32::from(rgb[1]) - mu[1];
-            let d2 = f32::from(rgb[2]) - mu[2];
-            let dist2 = d0 * d0 + d1 * d1 + d2 * d2;
-            let fg = dist2 > k2x3 * v.max(min_var);
-            let a = if fg { a_fg } else { a_bg };
-            *m = if fg { 255 } else { 0 };
-            mu[0] += a * d0;
-            mu[1] += a * d1;
-            mu[2] += a * d2;
-            *v = (*v + a * (dist2 / 3.0 - *v)).clamp(min_var, max_var);
+            let (class, d, dist2) = p.classify(rgb, mu, *v);
+            let a = if class == CLASS_BG { p.a_bg } else { p.a_fg };
+            *m = if class == CLASS_FG { 255 } else { 0 };
+            p.learn(mu, v, d, dist2, a);
         }
         GrayImage::from_raw(self.width, self.height, mask)
             .ok_or_else(|| Error::Invalid("mask size mismatch".into()))
     }
-}
 
-fn median_u8(sorted: &[u8]) -> f32 {
-    let n = sorted.len();
-    if n % 2 == 1 {
-        f32::from(sorted[n / 2])
-    } else {
-        (f32::from(sorted[n / 2 - 1]) + f32::from(sorted[n / 2])) / 2.0
+    /// Classifies every pixel of `image` (255 = foreground, 0 = background or shadow)
+    /// without learning; [`BackgroundModel::update_held`] learns afterwards.
+    ///
+    /// # Errors
+    /// The image does not have the model's size.
+    pub fn classify(&mut self, frame_index: u32, image: &RgbImage) -> Result<GrayImage> {
+        self.check_size(frame_index, image)?;
+        let p = Params::of(&self.config);
+        let mut mask = vec![0u8; self.var.len()];
+        for ((((m, c), mu), v), rgb) in mask
+            .iter_mut()
+            .zip(self.class.iter_mut())
+            .zip(self.mean.chunks_exact(3))
+            .zip(&self.var)
+            .zip(image.as_raw().chunks_exact(3))
+        {
+            let (class, _, _) = p.classify(rgb, mu, *v);
+            *c = class;
+            *m = if class == CLASS_FG { 255 } else { 0 };
+        }
+        GrayImage::from_raw(self.width, self.height, mask)
+            .ok_or_else(|| Error::Invalid("mask size mismatch".into()))
+    }
+
+    /// Learns `image` (the one just classified) after [`BackgroundModel::classify`]:
+    /// pixels under `held` (the detector's cleaned foreground mask, non-zero = held) that
+    /// have been held for less than `hold_still_s` up to `time_s` are not learnt; the
+    /// others as in [`BackgroundModel::apply`].
+    ///
+    /// # Errors
+    /// `image` or `held` does not have the model's size.
+    pub fn update_held(
+        &mut self,
+        frame_index: u32,
+        image: &RgbImage,
+        held: &GrayImage,
+        time_s: f64,
+    ) -> Result<()> {
+        self.check_size(frame_index, image)?;
+        if held.dimensions() != (self.width, self.height) {
+            return Err(Error::FrameSize {
+                frame: frame_index,
+                got: held.dimensions(),
+                expected: (self.width, self.height),
+            });
+        }
+        let p = Params::of(&self.config);
+        let hold = self.config.hold_still_s as f32;
+        let t = time_s as f32;
+        for (((((mu, v), &c), since), rgb), &h) in self
+            .mean
+            .chunks_exact_mut(3)
+            .zip(self.var.iter_mut())
+            .zip(&self.class)
+            .zip(self.held_since.iter_mut())
+            .zip(image.as_raw().chunks_exact(3))
+            .zip(held.as_raw())
+        {
+            if h != 0 {
+                if since.is_nan() {
+                    *since = t;
+                }
+                if t - *since < hold {
+                    continue;
+                }
+            } else {
+                *since = f32::NAN;
+            }
+            let d = [
+                f32::from(rgb[0]) - mu[0],
+                f32::from(rgb[1]) - mu[1],
+                f32::from(rgb[2]) - mu[2],
+            ];
+            let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let a = if c == CLASS_BG { p.a_bg } else { p.a_fg };
+            p.learn(mu, v, d, dist2, a);
+        }
+        Ok(())
     }
 }
 

@@ -3,12 +3,18 @@
 //! A [`Detector`] turns one frame into [`FrameDetections`]: the objects found (centre, box,
 //! class, score, mean colour when known) and, for detectors that have one, the foreground
 //! mask. [`background::BackgroundDetector`] is the background-subtraction detector (per-pixel
-//! model of [`background_model`], clean-up and connected regions of [`regions`]).
+//! model of [`background_model`] started by [`startup`], clean-up and connected regions of
+//! [`regions`], cut into vehicles by [`split`]).
 
 pub mod background;
 pub mod background_model;
 pub mod file;
 pub mod regions;
+pub mod split;
+pub mod startup;
+
+#[cfg(test)]
+mod scenario_tests;
 
 use crate::detection::Detection;
 use crate::error::Result;

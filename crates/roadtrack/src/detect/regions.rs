@@ -158,34 +158,112 @@ pub fn extract_regions(
     image: &image::RgbImage,
     config: &RegionConfig,
 ) -> Vec<Region> {
+    extract_regions_split(mask, image, config, None)
+}
+
+/// Running sums of one region's pixels.
+#[derive(Clone, Copy)]
+struct Acc {
+    n: u64,
+    /// Raster index of the first pixel.
+    first: u64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    syy: f64,
+    sxy: f64,
+    rgb: [f64; 3],
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Acc {
+    const EMPTY: Acc = Acc {
+        n: 0,
+        first: u64::MAX,
+        sx: 0.0,
+        sy: 0.0,
+        sxx: 0.0,
+        syy: 0.0,
+        sxy: 0.0,
+        rgb: [0.0; 3],
+        x0: u32::MAX,
+        y0: u32::MAX,
+        x1: 0,
+        y1: 0,
+    };
+
+    #[inline]
+    fn add(&mut self, x: u32, y: u32, width: u32, rgb: Option<&image::Rgb<u8>>) {
+        if self.n == 0 {
+            self.first = u64::from(y) * u64::from(width) + u64::from(x);
+        }
+        self.n += 1;
+        let (fx, fy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+        self.sx += fx;
+        self.sy += fy;
+        self.sxx += fx * fx;
+        self.syy += fy * fy;
+        self.sxy += fx * fy;
+        if let Some(p) = rgb {
+            for c in 0..3 {
+                self.rgb[c] += f64::from(p[c]);
+            }
+        }
+        self.x0 = self.x0.min(x);
+        self.y0 = self.y0.min(y);
+        self.x1 = self.x1.max(x);
+        self.y1 = self.y1.max(y);
+    }
+
+    fn centroid(&self) -> Point {
+        let nf = self.n as f64;
+        Point::new(self.sx / nf, self.sy / nf)
+    }
+
+    /// The unit principal axis (of the larger second moment).
+    fn axis(&self) -> (f64, f64) {
+        let nf = self.n as f64;
+        let c = self.centroid();
+        let cxx = self.sxx / nf - c.x * c.x;
+        let cyy = self.syy / nf - c.y * c.y;
+        let cxy = self.sxy / nf - c.x * c.y;
+        let theta = 0.5 * (2.0 * cxy).atan2(cxx - cyy);
+        (theta.cos(), theta.sin())
+    }
+
+    fn region(&self) -> Region {
+        let nf = self.n as f64;
+        Region {
+            area_px: self.n as u32,
+            centroid_px: self.centroid(),
+            bbox: BBox::new(
+                f64::from(self.x0),
+                f64::from(self.y0),
+                f64::from(self.x1 - self.x0 + 1),
+                f64::from(self.y1 - self.y0 + 1),
+            ),
+            mean_rgb: self.rgb.map(|s| s / nf),
+        }
+    }
+}
+
+/// [`extract_regions`], then each region kept is cut by `splitter` (when given) into the
+/// vehicles it holds (module [`super::split`]); pieces are regions of their own, ordered
+/// with the others by first pixel.
+pub fn extract_regions_split(
+    mask: &image::GrayImage,
+    image: &image::RgbImage,
+    config: &RegionConfig,
+    splitter: Option<&super::split::Splitter>,
+) -> Vec<Region> {
     use imageproc::region_labelling::{Connectivity, connected_components};
     let labels = connected_components(mask, Connectivity::Eight, image::Luma([0u8]));
     // Labels are assigned in raster order of first appearance, 1..=n.
     let n = labels.pixels().map(|p| p[0]).max().unwrap_or(0) as usize;
-    #[derive(Clone, Copy)]
-    struct Acc {
-        n: u64,
-        sx: f64,
-        sy: f64,
-        rgb: [f64; 3],
-        x0: u32,
-        y0: u32,
-        x1: u32,
-        y1: u32,
-    }
-    let mut acc = vec![
-        Acc {
-            n: 0,
-            sx: 0.0,
-            sy: 0.0,
-            rgb: [0.0; 3],
-            x0: u32::MAX,
-            y0: u32::MAX,
-            x1: 0,
-            y1: 0,
-        };
-        n + 1
-    ];
+    let mut acc = vec![Acc::EMPTY; n + 1];
     let (w, h) = labels.dimensions();
     let img_ok = image.dimensions() == (w, h);
     for y in 0..h {
@@ -194,40 +272,58 @@ pub fn extract_regions(
             if l == 0 {
                 continue;
             }
-            let a = &mut acc[l];
-            a.n += 1;
-            a.sx += f64::from(x) + 0.5;
-            a.sy += f64::from(y) + 0.5;
-            if img_ok {
-                let p = image.get_pixel(x, y);
-                for c in 0..3 {
-                    a.rgb[c] += f64::from(p[c]);
-                }
-            }
-            a.x0 = a.x0.min(x);
-            a.y0 = a.y0.min(y);
-            a.x1 = a.x1.max(x);
-            a.y1 = a.y1.max(y);
+            acc[l].add(x, y, w, img_ok.then(|| image.get_pixel(x, y)));
         }
     }
-    acc.iter()
-        .skip(1)
-        .filter(|a| a.n >= u64::from(config.min_area_px) && a.n <= u64::from(config.max_area_px))
-        .map(|a| {
-            let nf = a.n as f64;
-            Region {
-                area_px: a.n as u32,
-                centroid_px: Point::new(a.sx / nf, a.sy / nf),
-                bbox: BBox::new(
-                    f64::from(a.x0),
-                    f64::from(a.y0),
-                    f64::from(a.x1 - a.x0 + 1),
-                    f64::from(a.y1 - a.y0 + 1),
-                ),
-                mean_rgb: a.rgb.map(|s| s / nf),
+    let keep =
+        |a: &Acc| a.n >= u64::from(config.min_area_px) && a.n <= u64::from(config.max_area_px);
+    let Some(splitter) = splitter else {
+        return acc
+            .iter()
+            .skip(1)
+            .filter(|a| keep(a))
+            .map(Acc::region)
+            .collect();
+    };
+    let mut pieces: Vec<Acc> = Vec::with_capacity(n);
+    for (l, a) in acc.iter().enumerate().skip(1) {
+        if !keep(a) {
+            continue;
+        }
+        let c = a.centroid();
+        let u = a.axis();
+        let t_of =
+            |x: u32, y: u32| (f64::from(x) + 0.5 - c.x) * u.0 + (f64::from(y) + 0.5 - c.y) * u.1;
+        let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
+        for y in a.y0..=a.y1 {
+            for x in a.x0..=a.x1 {
+                if labels.get_pixel(x, y)[0] as usize == l {
+                    let t = t_of(x, y);
+                    t_min = t_min.min(t);
+                    t_max = t_max.max(t);
+                }
             }
-        })
-        .collect()
+        }
+        // Pixel centres → pixel edges.
+        let cuts = splitter.cuts(c, u, t_min - 0.5, t_max + 0.5);
+        if cuts.is_empty() {
+            pieces.push(*a);
+            continue;
+        }
+        let mut parts = vec![Acc::EMPTY; cuts.len() + 1];
+        for y in a.y0..=a.y1 {
+            for x in a.x0..=a.x1 {
+                if labels.get_pixel(x, y)[0] as usize == l {
+                    let t = t_of(x, y);
+                    let k = cuts.partition_point(|&cut| cut <= t);
+                    parts[k].add(x, y, w, img_ok.then(|| image.get_pixel(x, y)));
+                }
+            }
+        }
+        pieces.extend(parts.into_iter().filter(|p| p.n > 0));
+    }
+    pieces.sort_by_key(|p| p.first);
+    pieces.iter().map(Acc::region).collect()
 }
 
 impl Region {

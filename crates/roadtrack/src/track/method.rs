@@ -168,6 +168,39 @@ impl MethodConfig {
         }
     }
 
+    /// The method with its background detector and model as published: median start-up,
+    /// no shadow suppression, hold or splitting (see
+    /// [`BackgroundDetectorConfig::as_published`]).
+    pub fn as_published(mut self) -> Self {
+        match &mut self {
+            MethodConfig::Relaxation { detector, .. } => {
+                **detector = (**detector).clone().as_published();
+            }
+            MethodConfig::Mrf { config, .. } => {
+                config.background = config.background.clone().as_published();
+            }
+            MethodConfig::Filter { config, .. } => {
+                config.detector = config.detector.clone().as_published();
+            }
+        }
+        self
+    }
+
+    /// Gives the method's background detector the camera calibration (its expected vehicle
+    /// size splits regions holding several vehicles).
+    pub fn with_calibration(mut self, calibration: &crate::calibration::Calibration) -> Self {
+        match &mut self {
+            MethodConfig::Relaxation { detector, .. } => {
+                detector.calibration = Some(Box::new(calibration.clone()));
+            }
+            MethodConfig::Mrf { .. } => {}
+            MethodConfig::Filter { config, .. } => {
+                config.detector.calibration = Some(Box::new(calibration.clone()));
+            }
+        }
+        self
+    }
+
     /// The background model the method learns before tracking.
     pub fn background(&self) -> &BackgroundConfig {
         match self {

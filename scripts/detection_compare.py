@@ -1,0 +1,198 @@
+#!/usr/bin/env python3
+"""Detection recall and precision at IoU 0.5 on the simulator's scenes (docs/EXPERIMENTS.md,
+"Detection"): roadtrack's background detector as it was (median start-up, no shadow
+suppression, hold or splitting), as it is by default, and with region splitting
+(`--calibration … --split`), and OpenCV's MOG2 + contours, on the same frames.
+
+    python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
+        --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
+        [--views aerial,oblique]
+
+Not part of the test suite; needs `pip install opencv-python-headless numpy`.
+
+Matching: per frame, detections and ground-truth boxes (gt/gt.txt) are paired greedily by
+decreasing IoU, pairs below 0.5 dropped. Recall per MOT17 class (column 8: 1 pedestrian,
+3 car, 5 motorcycle, 6 lorry/bus) and for vehicles standing still (truth.csv speed below
+0.5 m/s; "arrived": those among them seen moving earlier in the sequence, i.e. not
+standing there from the first frame), over ground-truth objects at least half visible (column 9 ≥ 0.5: heavily
+occluded objects cannot be found by any region detector); precision over all detections
+(a detection matched to a less visible object counts as correct).
+"""
+import argparse
+import csv
+import os
+import subprocess
+from collections import defaultdict
+
+import cv2
+import numpy as np
+
+OLD_CONFIG = """[background]
+startup = "median"
+shadows = false
+hold_still_s = 0.0
+
+[split]
+enabled = false
+"""
+
+CLASSES = {1: "ped", 3: "car", 5: "moto", 6: "lorry/bus"}
+
+
+def read_gt(seq):
+    gt = defaultdict(list)
+    with open(f"{seq}/gt/gt.txt") as f:
+        for line in f:
+            c = line.strip().split(",")
+            if len(c) < 9:
+                continue
+            frame, oid = int(c[0]), int(c[1])
+            box = tuple(map(float, c[2:6]))
+            gt[frame].append((oid, box, int(c[7]), float(c[8])))
+    return gt
+
+
+def read_stopped(seq):
+    """(frame, id) of vehicles standing still, and of those among them seen moving before
+    (they arrived in the sequence and stopped)."""
+    stopped, arrived, moved = set(), set(), set()
+    rows = []
+    with open(f"{seq}/truth.csv") as f:
+        for row in csv.DictReader(f):
+            rows.append((int(row["frame"]), int(row["id"]), float(row["speed_mps"])))
+    for frame, oid, speed in sorted(rows):
+        if speed < 0.5:
+            stopped.add((frame, oid))
+            if oid in moved:
+                arrived.add((frame, oid))
+        else:
+            moved.add(oid)
+    return stopped, arrived
+
+
+def read_ours(path):
+    dets = defaultdict(list)
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            x, y, w, h = (float(row[k]) for k in "xywh")
+            dets[int(row["frame"])].append((x - w / 2, y - h / 2, w, h))
+    return dets
+
+
+def mog2(seq, n_frames):
+    """OpenCV MOG2 (defaults: history 500, varThreshold 16, shadows detected and dropped),
+    3×3 opening and 7×7 closing (as our regions' defaults), external contours, area ≥ 60."""
+    sub = cv2.createBackgroundSubtractorMOG2()
+    k_open = cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3))
+    k_close = cv2.getStructuringElement(cv2.MORPH_RECT, (7, 7))
+    dets = defaultdict(list)
+    ext = ".jpg"
+    with open(f"{seq}/seqinfo.ini") as f:
+        for line in f:
+            if line.startswith("imExt="):
+                ext = line.split("=")[1].strip()
+    for frame in range(1, n_frames + 1):
+        img = cv2.imread(f"{seq}/img1/{frame:06d}{ext}")
+        fg = sub.apply(img)
+        fg = np.where(fg == 255, 255, 0).astype(np.uint8)
+        fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, k_open)
+        fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, k_close)
+        contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        for c in contours:
+            if cv2.contourArea(c) < 60:
+                continue
+            dets[frame].append(tuple(map(float, cv2.boundingRect(c))))
+    return dets
+
+
+def iou(a, b):
+    ax1, ay1, bx1, by1 = a[0] + a[2], a[1] + a[3], b[0] + b[2], b[1] + b[3]
+    iw = max(0.0, min(ax1, bx1) - max(a[0], b[0]))
+    ih = max(0.0, min(ay1, by1) - max(a[1], b[1]))
+    inter = iw * ih
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return inter / union if union > 0 else 0.0
+
+
+def score(gt, dets, stopped, n_frames):
+    hit = defaultdict(int)
+    tot = defaultdict(int)
+    n_det = n_tp = 0
+    for frame in range(1, n_frames + 1):
+        g = gt.get(frame, [])
+        d = dets.get(frame, [])
+        n_det += len(d)
+        pairs = sorted(
+            ((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g) for j, db in enumerate(d)),
+            reverse=True,
+        )
+        used_g, used_d = set(), set()
+        for v, i, j in pairs:
+            if v < 0.5:
+                break
+            if i in used_g or j in used_d:
+                continue
+            used_g.add(i)
+            used_d.add(j)
+        n_tp += len(used_d)
+        for i, (oid, _, cls, vis) in enumerate(g):
+            if vis < 0.5:
+                continue
+            keys = [CLASSES.get(cls, "other"), "all"]
+            if cls != 1 and (frame, oid) in stopped[0]:
+                keys.append("stopped")
+            if cls != 1 and (frame, oid) in stopped[1]:
+                keys.append("arrived")
+            for k in keys:
+                tot[k] += 1
+                hit[k] += i in used_g
+    rec = {k: hit[k] / tot[k] for k in tot}
+    return rec, (n_tp / n_det if n_det else float("nan")), tot
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--roadtrack", default="roadtrack")
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--work", default="/tmp/detcmp")
+    ap.add_argument("--scenes", default="road,intersection,crossing")
+    ap.add_argument("--views", default="aerial,oblique")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    old_cfg = f"{a.work}/old.toml"
+    with open(old_cfg, "w") as f:
+        f.write(OLD_CONFIG)
+    cols = ["all", "car", "lorry/bus", "moto", "ped", "stopped", "arrived"]
+    print("| scene | view | detector | " + " | ".join(f"R {c}" for c in cols) + " | P |")
+    print("| --- | --- | --- | " + " | ".join("---:" for _ in cols) + " | ---: |")
+    for scene in a.scenes.split(","):
+        for view in a.views.split(","):
+            seq = f"{a.work}/{scene}_{view}_{a.seed}"
+            if not os.path.isdir(seq):
+                subprocess.run([a.roadtrack, "-q", "simulate", "--scene", scene, "--view", view,
+                                "--frames", str(a.frames), "--seed", str(a.seed), "-o", seq],
+                               check=True)
+            gt = read_gt(seq)
+            stopped = read_stopped(seq)
+            runs = {}
+            for name, extra in [
+                ("median (old)", ["--config", old_cfg]),
+                ("default", []),
+                ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
+            ]:
+                out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
+                subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
+                runs[name] = read_ours(out)
+            runs["OpenCV MOG2 + contours"] = mog2(seq, a.frames)
+            for name, dets in runs.items():
+                rec, prec, tot = score(gt, dets, stopped, a.frames)
+                cells = [f"{rec[c]:.2f}" if c in rec else "–" for c in cols]
+                print(f"| {scene} | {view} | {name} | " + " | ".join(cells) + f" | {prec:.2f} |",
+                      flush=True)
+            print(f"<!-- {scene}/{view}: ground-truth counts (visibility ≥ 0.5) "
+                  + ", ".join(f"{c} {tot.get(c, 0)}" for c in cols) + " -->", flush=True)
+
+
+if __name__ == "__main__":
+    main()
