@@ -130,7 +130,7 @@ fn zones_with_nan_are_rejected_naming_the_file_and_the_zone() {
         "--fps",
         "0",
     ]);
-    expect(&o, 2, &["--fps", "must be > 0"]);
+    expect(&o, 2, &["--fps", "must be in (0, 1000]"]);
 }
 
 #[test]
