@@ -147,6 +147,14 @@ impl TrainConfig {
                 "input must be at least 10×10 px and channels positive".into(),
             );
         }
+        for (v, f) in [
+            (self.min_visibility, "min_visibility"),
+            (self.max_negative_iou, "max_negative_iou"),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(f, format!("must be in [0, 1], got {v}"));
+            }
+        }
         if !(self.negatives_per_positive >= 0.0 && self.negatives_per_positive.is_finite()) {
             return bad("negatives_per_positive", "must be non-negative".into());
         }
@@ -579,6 +587,28 @@ pub fn synthetic_patches(n_each: usize, height: usize, width: usize, seed: u64) 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn validate_rejects_every_non_finite_float() {
+        type Field = fn(&mut TrainConfig) -> &mut f64;
+        let fields: [(&str, Field); 5] = [
+            ("learning_rate", |c| &mut c.learning_rate),
+            ("train_fraction", |c| &mut c.train_fraction),
+            ("negatives_per_positive", |c| &mut c.negatives_per_positive),
+            ("min_visibility", |c| &mut c.min_visibility),
+            ("max_negative_iou", |c| &mut c.max_negative_iou),
+        ];
+        for (name, field) in fields {
+            for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut c = TrainConfig::default();
+                *field(&mut c) = x;
+                match c.validate() {
+                    Err(Error::InvalidConfig { field: f, .. }) => assert_eq!(f, name),
+                    other => panic!("{name} = {x}: {other:?}"),
+                }
+            }
+        }
+    }
 
     fn quick() -> TrainConfig {
         TrainConfig {
