@@ -316,7 +316,7 @@ fn other_counts_and_spans_are_bounded() {
         &"-o",
         &d.path().join("p"),
     ]);
-    refused(&o, 1, &["dt_s", "86400"]);
+    refused(&o, 2, &["--pairs", "86400"]);
     let o = run(&[
         &"simulate",
         &"--pairs",
@@ -326,7 +326,7 @@ fn other_counts_and_spans_are_bounded() {
         &"-o",
         &d.path().join("p"),
     ]);
-    refused(&o, 1, &["n_pairs", "100000"]);
+    refused(&o, 2, &["--n-pairs", "100000"]);
     // With epsilon 0 the relaxation never converges: the iteration cap must be bounded.
     let f = fixture("relaxation/1-platoon/frame1.csv");
     let f2 = fixture("relaxation/1-platoon/frame2.csv");
@@ -339,7 +339,7 @@ fn other_counts_and_spans_are_bounded() {
         &"-o",
         &d.path().join("m.csv"),
     ]);
-    refused(&o, 1, &["max_iterations", "100000"]);
+    refused(&o, 2, &["--max-iterations", "100000"]);
     // A likelihood window larger than any image.
     let cfg = write(d.path(), "f.toml", "[likelihood]\nmin_window_px = 100000\n");
     let o = run(&[

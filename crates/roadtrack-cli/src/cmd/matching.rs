@@ -90,7 +90,25 @@ impl RelaxArgs {
         if let Some(n) = self.max_neighbours {
             c.max_neighbours = n as usize;
         }
-        c.validate()?;
+        // A bound a flag broke is a usage error naming the flag.
+        crate::flags::check_overrides(
+            c.validate(),
+            &[
+                (
+                    "max_iterations",
+                    "--max-iterations",
+                    self.max_iterations.is_some(),
+                ),
+                ("epsilon", "--epsilon", self.epsilon.is_some()),
+                ("max_labels", "--max-labels", self.max_labels.is_some()),
+                (
+                    "max_neighbours",
+                    "--max-neighbours",
+                    self.max_neighbours.is_some(),
+                ),
+            ],
+            self.config.as_deref(),
+        )?;
         Ok(c)
     }
 

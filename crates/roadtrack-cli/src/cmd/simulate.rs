@@ -114,7 +114,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             position_sd_px: args.position_noise,
             ..PairsConfig::default()
         };
-        pairs.validate()?;
+        // Every field but the defaults' comes from a flag: a bound it breaks is a usage
+        // error naming the flag.
+        crate::flags::check_overrides(
+            pairs.validate(),
+            &[
+                ("dt_s", "--pairs", true),
+                ("n_pairs", "--n-pairs", true),
+                ("drop_fraction", "--drop", true),
+                ("position_sd_px", "--position-noise", true),
+            ],
+            None,
+        )?;
         let bar = ui.progress(Some(u64::from(pairs.n_pairs)), "pairs");
         let s = roadtrack_sim::write_pairs(&config, &pairs, args.seed, out, &mut |d, _| {
             bar.set_position(d)
