@@ -213,6 +213,9 @@ pub enum DetectorArg {
     Background,
     /// Public detections from a file: --detections F, by default the sequence's det/det.txt.
     File,
+    /// Any ONNX object detector, --model F.onnx: YOLO, YOLOX, RT-DETR, D-FINE exports
+    /// (docs/DETECTION.md "ONNX detectors").
+    Onnx,
 }
 
 /// The shared track life cycle after the method (`track`; docs/TRACKING.md).
@@ -271,6 +274,8 @@ pub struct DetectorArgs {
     /// (.csv); default: det/det.txt of the sequence folder given as input.
     #[arg(long, value_name = "F")]
     pub detections: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub onnx: crate::onnx_detector::OnnxArgs,
 }
 
 impl DetectorArgs {
@@ -278,6 +283,11 @@ impl DetectorArgs {
     pub fn is_file(&self) -> bool {
         self.detector == Some(DetectorArg::File)
             || (self.detector.is_none() && self.detections.is_some())
+    }
+
+    /// Whether the detector is an ONNX model (`--detector onnx`).
+    pub fn is_onnx(&self) -> bool {
+        self.detector == Some(DetectorArg::Onnx)
     }
 
     /// The detector asked for; `None` leaves the choice to the method (its own background
@@ -291,8 +301,14 @@ impl DetectorArgs {
         let kind = match (self.detector, &self.detections) {
             (None, Some(_)) => DetectorArg::File,
             (Some(k), _) => k,
-            (None, None) => return Ok(None),
+            (None, None) => {
+                reject_onnx_flags(&self.onnx)?;
+                return Ok(None);
+            }
         };
+        if kind != DetectorArg::Onnx {
+            reject_onnx_flags(&self.onnx)?;
+        }
         Ok(Some(match kind {
             DetectorArg::Background => {
                 if self.detections.is_some() {
@@ -316,6 +332,21 @@ impl DetectorArgs {
                 };
                 DetectorSpec::File(path)
             }
+            DetectorArg::Onnx => {
+                if self.detections.is_some() {
+                    return Err(crate::flags::conflict(
+                        "--detections needs --detector file, not --detector onnx",
+                    ));
+                }
+                self.onnx.spec()?
+            }
         }))
     }
+}
+
+/// The `--detector onnx` flags are usage errors with another detector.
+fn reject_onnx_flags(onnx: &crate::onnx_detector::OnnxArgs) -> Result<()> {
+    let mut given = onnx.given();
+    given.push(("--detector-model", onnx.detector_model.is_some()));
+    crate::flags::reject_given(&given, "only with --detector onnx")
 }

@@ -5,6 +5,7 @@ mod cmd;
 mod common;
 mod demo;
 mod flags;
+mod onnx_detector;
 mod overlay;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};

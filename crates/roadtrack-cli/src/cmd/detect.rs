@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// them), written as a detections CSV.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack detect ../shared/data/vtest.avi -o detections.csv --overlay overlay/ --end 100"
+    after_help = "Example:\n  roadtrack detect ../shared/data/vtest.avi -o detections.csv --overlay overlay/ --end 100\n  roadtrack detect seq/ --detector onnx --model yolox_s.onnx --input-scale 1 --bgr --resize letterbox-top-left"
 )]
 pub struct Args {
     /// Video file, folder of numbered images, or MOTChallenge sequence folder.
@@ -53,6 +53,9 @@ pub struct Args {
     /// Also write each frame's cleaned foreground mask, as PNG, into this folder.
     #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub masks: Option<PathBuf>,
+    /// The detector model for --detector onnx (the same as --detector-model).
+    #[arg(long, value_name = "F.onnx", conflicts_with = "detector_model")]
+    pub model: Option<PathBuf>,
     #[command(flatten)]
     pub detector: DetectorArgs,
     #[command(flatten)]
@@ -68,8 +71,14 @@ pub enum StartupArg {
     Median,
 }
 
-pub fn run(args: Args, ui: &Ui) -> Result<()> {
-    if args.detector.is_file() {
+pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
+    if args.model.is_some() {
+        if !args.detector.is_onnx() {
+            return Err(crate::flags::conflict("--model: only with --detector onnx"));
+        }
+        args.detector.onnx.detector_model = args.model.take();
+    }
+    if args.detector.is_file() || args.detector.is_onnx() {
         crate::flags::reject_given(
             &[
                 ("--config", args.config.is_some()),
@@ -77,8 +86,15 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 ("--max-area", args.max_area.is_some()),
                 ("--threshold-sigma", args.threshold_sigma.is_some()),
                 ("--masks", args.masks.is_some()),
+                ("--startup", args.startup.is_some()),
+                ("--calibration", args.calibration.is_some()),
+                ("--split", args.split),
             ],
-            "only for the background detector, not --detector file",
+            if args.detector.is_onnx() {
+                "only for the background detector, not --detector onnx"
+            } else {
+                "only for the background detector, not --detector file"
+            },
         )?;
     }
     let mut config: BackgroundDetectorConfig = load_config(args.config.as_deref())?;

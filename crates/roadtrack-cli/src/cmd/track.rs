@@ -38,7 +38,7 @@ pub enum LikelihoodArg {
 /// and speeds when a calibration is given) and GeoJSON.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method phd --likelihood cnn --model person.onnx --dense-stride 8 -o phd_cnn.txt\n  roadtrack track ../shared/data/vtest.avi --method phd --likelihood ssd -o phd_ssd.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
+    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method phd --likelihood cnn --model person.onnx --dense-stride 8 -o phd_cnn.txt\n  roadtrack track ../shared/data/vtest.avi --method phd --likelihood ssd -o phd_ssd.txt\n  roadtrack track seq/ --method relaxation --detector onnx --model rtdetr.onnx --resize stretch -o tracks.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
 )]
 pub struct Args {
     /// Video file, folder of numbered images, or MOTChallenge sequence folder.
@@ -140,7 +140,10 @@ fn check_method_flags(args: &Args) -> Result<()> {
         reject_given(
             &[
                 ("--likelihood", args.likelihood.is_some()),
-                ("--model", args.model.is_some()),
+                (
+                    "--model",
+                    args.model.is_some() && !args.model_is_detectors(),
+                ),
                 ("--dense-stride", args.dense_stride.is_some()),
                 ("--window-scale", args.window_scale.is_some()),
             ],
@@ -149,7 +152,11 @@ fn check_method_flags(args: &Args) -> Result<()> {
     }
     // Choice: --seed is accepted with every method, so that a loop over the methods can
     // pass one seed; relaxation has nothing to seed.
-    if filter && args.model.is_some() && args.likelihood() == LikelihoodArg::Colour {
+    if filter
+        && args.model.is_some()
+        && args.likelihood() == LikelihoodArg::Colour
+        && !args.model_is_detectors()
+    {
         return Err(crate::flags::conflict(
             "--model needs --likelihood cnn or ssd",
         ));
@@ -157,6 +164,11 @@ fn check_method_flags(args: &Args) -> Result<()> {
     if args.detector_config.is_some() && args.detector.is_file() {
         return Err(crate::flags::conflict(
             "--detector-config configures the background detector, not --detector file",
+        ));
+    }
+    if args.detector_config.is_some() && args.detector.is_onnx() {
+        return Err(crate::flags::conflict(
+            "--detector-config configures the background detector, not --detector onnx",
         ));
     }
     Ok(())
@@ -167,10 +179,24 @@ impl Args {
     fn likelihood(&self) -> LikelihoodArg {
         self.likelihood.unwrap_or(LikelihoodArg::Colour)
     }
+
+    /// Whether `--model` is the `--detector onnx` model: with --detector onnx, no
+    /// --detector-model and a likelihood without a model (colour, or none for relaxation
+    /// and mrf).
+    // Choice: one `--model` serves whichever of the two needs one; when both do (the cnn or
+    // ssd likelihood with --detector onnx), the detector's is --detector-model.
+    fn model_is_detectors(&self) -> bool {
+        self.detector.is_onnx()
+            && self.detector.onnx.detector_model.is_none()
+            && self.likelihood() == LikelihoodArg::Colour
+    }
 }
 
-pub fn run(args: Args, ui: &Ui) -> Result<()> {
+pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     check_method_flags(&args)?;
+    if args.model_is_detectors() {
+        args.detector.onnx.detector_model = args.model.take();
+    }
     let options = args.frames.options()?;
     let seed = args.seed;
     let calibration = args

@@ -102,12 +102,12 @@ impl std::fmt::Debug for OnnxClassifier {
     }
 }
 
-fn model_error(path: &Path, message: impl std::fmt::Display) -> Error {
+pub(crate) fn model_error(path: &Path, message: impl std::fmt::Display) -> Error {
     Error::format(path, format!("ONNX model: {message}"))
 }
 
 /// The metadata value for `key`, if the model has it.
-fn metadata<'a>(proto: &'a pb::ModelProto, key: &str) -> Option<&'a str> {
+pub(crate) fn metadata<'a>(proto: &'a pb::ModelProto, key: &str) -> Option<&'a str> {
     proto
         .metadata_props
         .iter()
@@ -186,7 +186,63 @@ pub fn class_probability(values: &[f32], target: usize, kind: OutputKind) -> f64
     }
 }
 
-fn tract_load(proto: &pb::ModelProto, input: [usize; 4]) -> TractResult<Arc<TypedRunnableModel>> {
+/// Reads the ONNX model at `path` and checks it has one image input `N×3×H×W`; returns the
+/// model and the input's dims (`None` where symbolic). Shared by the classifier and the
+/// detector.
+///
+/// # Errors
+/// [`Error::Io`] when the file cannot be read; [`Error::Format`] naming the file when it is
+/// not ONNX or has no single rank-4, 3-channel input.
+pub(crate) fn read_image_model(path: &Path) -> Result<(pb::ModelProto, Vec<Option<i64>>)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let proto = <pb::ModelProto as prost::Message>::decode(bytes.as_slice())
+        .map_err(|e| model_error(path, format!("not an ONNX file ({e})")))?;
+    let graph = proto
+        .graph
+        .as_ref()
+        .filter(|g| !g.node.is_empty())
+        .ok_or_else(|| model_error(path, "not an ONNX model (no graph nodes)"))?;
+    let initializers: Vec<&str> = graph.initializer.iter().map(|t| t.name.as_str()).collect();
+    let inputs: Vec<&pb::ValueInfoProto> = graph
+        .input
+        .iter()
+        .filter(|i| !initializers.contains(&i.name.as_str()))
+        .collect();
+    let [input] = inputs.as_slice() else {
+        return Err(model_error(
+            path,
+            format!("expected one image input, found {}", inputs.len()),
+        ));
+    };
+    let dims = value_dims(input).unwrap_or_default();
+    if dims.len() != 4 {
+        return Err(model_error(
+            path,
+            format!(
+                "input `{}` has rank {}, expected 4 (N×3×H×W)",
+                input.name,
+                dims.len()
+            ),
+        ));
+    }
+    if let Some(c) = dims[1]
+        && c != 3
+    {
+        return Err(model_error(
+            path,
+            format!(
+                "input `{}` has {c} channels, expected 3 (N×3×H×W, RGB)",
+                input.name
+            ),
+        ));
+    }
+    Ok((proto, dims))
+}
+
+pub(crate) fn tract_load(
+    proto: &pb::ModelProto,
+    input: [usize; 4],
+) -> TractResult<Arc<TypedRunnableModel>> {
     tract_onnx::onnx()
         .model_for_proto_model(proto)?
         .with_input_fact(0, f32::fact(input).into())?
@@ -202,48 +258,11 @@ impl OnnxClassifier {
     /// it is not ONNX, has no single rank-4 `N×3×H×W` input, no output, a target class
     /// beyond its outputs, or ops tract cannot run.
     pub fn load(path: &Path, config: &CnnConfig) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let proto = <pb::ModelProto as prost::Message>::decode(bytes.as_slice())
-            .map_err(|e| model_error(path, format!("not an ONNX file ({e})")))?;
+        let (proto, dims) = read_image_model(path)?;
         let graph = proto
             .graph
             .as_ref()
-            .filter(|g| !g.node.is_empty())
-            .ok_or_else(|| model_error(path, "not an ONNX model (no graph nodes)"))?;
-        let initializers: Vec<&str> = graph.initializer.iter().map(|t| t.name.as_str()).collect();
-        let inputs: Vec<&pb::ValueInfoProto> = graph
-            .input
-            .iter()
-            .filter(|i| !initializers.contains(&i.name.as_str()))
-            .collect();
-        let [input] = inputs.as_slice() else {
-            return Err(model_error(
-                path,
-                format!("expected one image input, found {}", inputs.len()),
-            ));
-        };
-        let dims = value_dims(input).unwrap_or_default();
-        if dims.len() != 4 {
-            return Err(model_error(
-                path,
-                format!(
-                    "input `{}` has rank {}, expected 4 (N×3×H×W)",
-                    input.name,
-                    dims.len()
-                ),
-            ));
-        }
-        if let Some(c) = dims[1]
-            && c != 3
-        {
-            return Err(model_error(
-                path,
-                format!(
-                    "input `{}` has {c} channels, expected 3 (N×3×H×W, RGB)",
-                    input.name
-                ),
-            ));
-        }
+            .ok_or_else(|| model_error(path, "no graph"))?;
         let (h, w) = match (config.input_size, dims[2], dims[3]) {
             (Some([h, w]), _, _) => (h as usize, w as usize),
             (None, Some(h), Some(w)) => (h as usize, w as usize),

@@ -1,0 +1,196 @@
+//! `--detector onnx`: any ONNX object detector (roadtrack-cnn's `OnnxDetector`; without the
+//! `cnn` feature a clear error).
+
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+/// The output layouts of `--layout` (roadtrack-cnn's `Layout`; here so that the flag
+/// parses without the `cnn` feature).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayoutArg {
+    /// Tell from the output shapes.
+    Auto,
+    /// One output [1, N, 4+C]: cx, cy, w, h (input px), C class scores.
+    Yolo,
+    /// One output [1, 4+C, N] (ultralytics' export).
+    YoloT,
+    /// One output [1, N, 5+C]: cx, cy, w, h, objectness, C class scores.
+    Yolox,
+    /// Two outputs: boxes [1, Q, 4] (normalised cx, cy, w, h) + logits [1, Q, C].
+    Detr,
+}
+
+/// How the frame is fitted into the model input (`--resize`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ResizeArg {
+    /// Keep the aspect, pad with grey 114, centred (ultralytics).
+    Letterbox,
+    /// Keep the aspect, pad right and bottom (YOLOX).
+    LetterboxTopLeft,
+    /// Scale each axis to fill the input.
+    Stretch,
+}
+
+/// How DETR logits become scores (`--detr-scores`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DetrScoresArg {
+    /// Independent sigmoid per class (RT-DETR, D-FINE).
+    Sigmoid,
+    /// Softmax with a last "no object" column (DETR).
+    Softmax,
+}
+
+/// The flags of `--detector onnx` (docs/DETECTION.md "ONNX detectors").
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct OnnxArgs {
+    /// --detector onnx: the detector model (ONNX). `detect` also takes it as --model, and
+    /// `track` too when --likelihood is colour.
+    #[arg(long, value_name = "F.onnx")]
+    pub detector_model: Option<PathBuf>,
+    /// --detector onnx: settings TOML (`OnnxDetectorConfig`); the flags below override it.
+    #[arg(long, value_name = "F.toml")]
+    pub onnx_config: Option<PathBuf>,
+    /// --detector onnx: output layout [default: auto].
+    #[arg(long, value_enum, value_name = "L")]
+    pub layout: Option<LayoutArg>,
+    /// --detector onnx: lowest score kept [default: 0.25].
+    #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
+    pub min_score: Option<f64>,
+    /// --detector onnx: class-wise NMS IoU threshold [default: 0.45].
+    #[arg(long, value_name = "IOU", value_parser = crate::flags::probability)]
+    pub iou_threshold: Option<f64>,
+    /// --detector onnx: model input HxW, e.g. 640x640 [default: the model's, else 640x640].
+    #[arg(long, value_name = "HxW", value_parser = input_size)]
+    pub input_size: Option<[u32; 2]>,
+    /// --detector onnx: pixel multiplier, 0.00392156862745098 (1/255, inputs 0..1) or 1
+    /// (0..255, YOLOX) [default: 1/255].
+    #[arg(long, value_name = "S", value_parser = crate::flags::positive_f32)]
+    pub input_scale: Option<f32>,
+    /// --detector onnx: feed B, G, R planes (YOLOX) instead of R, G, B.
+    #[arg(long)]
+    pub bgr: bool,
+    /// --detector onnx: how the frame is fitted in [default: letterbox].
+    #[arg(long, value_enum, value_name = "R")]
+    pub resize: Option<ResizeArg>,
+    /// --detector onnx: DETR logits [default: sigmoid].
+    #[arg(long, value_enum, value_name = "F")]
+    pub detr_scores: Option<DetrScoresArg>,
+    /// --detector onnx: model class index → roadtrack class, e.g. 0=pedestrian,2=car
+    /// (only these kept) [default: the 80 COCO classes, person → pedestrian, bicycle, car,
+    /// motorcycle, bus, truck kept].
+    #[arg(long, value_name = "MAP")]
+    pub classes: Option<String>,
+}
+
+/// `HxW` or `S` (square) → `[h, w]`.
+fn input_size(s: &str) -> Result<[u32; 2], String> {
+    let parse = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|v| (1..=8192).contains(v))
+            .ok_or_else(|| format!("`{s}`: expected HxW in px (1–8192), e.g. 640x640"))
+    };
+    match s.split_once(['x', 'X']) {
+        Some((h, w)) => Ok([parse(h)?, parse(w)?]),
+        None => {
+            let v = parse(s)?;
+            Ok([v, v])
+        }
+    }
+}
+
+impl OnnxArgs {
+    /// The given flags by name (for "only with --detector onnx" errors).
+    pub fn given(&self) -> Vec<(&'static str, bool)> {
+        vec![
+            ("--onnx-config", self.onnx_config.is_some()),
+            ("--layout", self.layout.is_some()),
+            ("--min-score", self.min_score.is_some()),
+            ("--iou-threshold", self.iou_threshold.is_some()),
+            ("--input-size", self.input_size.is_some()),
+            ("--input-scale", self.input_scale.is_some()),
+            ("--bgr", self.bgr),
+            ("--resize", self.resize.is_some()),
+            ("--detr-scores", self.detr_scores.is_some()),
+            ("--classes", self.classes.is_some()),
+        ]
+    }
+
+    /// The model path: --detector-model (or what the command took as --model).
+    fn model(&self) -> Result<&Path> {
+        self.detector_model.as_deref().ok_or_else(|| {
+            crate::flags::invalid(
+                "--detector onnx needs the model: --model F.onnx (or --detector-model F.onnx)",
+            )
+        })
+    }
+
+    /// The detector, loaded (`--detector onnx`).
+    #[cfg(feature = "cnn")]
+    pub fn spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+        use roadtrack_cnn::detector::{
+            Channels, DetrScores, Layout, OnnxDetector, OnnxDetectorConfig, Resize,
+        };
+        let model = self.model()?;
+        let mut config: OnnxDetectorConfig =
+            crate::common::load_config(self.onnx_config.as_deref())?;
+        if let Some(l) = self.layout {
+            config.layout = match l {
+                LayoutArg::Auto => Layout::Auto,
+                LayoutArg::Yolo => Layout::Yolo,
+                LayoutArg::YoloT => Layout::YoloT,
+                LayoutArg::Yolox => Layout::Yolox,
+                LayoutArg::Detr => Layout::Detr,
+            };
+        }
+        if let Some(s) = self.min_score {
+            config.min_score = s;
+        }
+        if let Some(s) = self.iou_threshold {
+            config.iou_threshold = s;
+        }
+        if let Some(s) = self.input_size {
+            config.input_size = Some(s);
+        }
+        if let Some(s) = self.input_scale {
+            config.preprocessing.input_scale = s;
+        }
+        if self.bgr {
+            config.channels = Channels::Bgr;
+        }
+        if let Some(r) = self.resize {
+            config.resize = match r {
+                ResizeArg::Letterbox => Resize::Letterbox,
+                ResizeArg::LetterboxTopLeft => Resize::LetterboxTopLeft,
+                ResizeArg::Stretch => Resize::Stretch,
+            };
+        }
+        if let Some(d) = self.detr_scores {
+            config.detr_scores = match d {
+                DetrScoresArg::Sigmoid => DetrScores::Sigmoid,
+                DetrScoresArg::Softmax => DetrScores::Softmax,
+            };
+        }
+        if let Some(c) = &self.classes {
+            config.classes = Some(c.clone());
+        }
+        crate::flags::check_overrides(
+            roadtrack::config::Validate::validate(&config),
+            &[("classes", "--classes", self.classes.is_some())],
+            self.onnx_config.as_deref(),
+        )?;
+        let detector = OnnxDetector::load(model, &config)?;
+        Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
+    }
+
+    /// Without the `cnn` feature there is no ONNX runtime.
+    #[cfg(not(feature = "cnn"))]
+    pub fn spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+        self.model()?;
+        anyhow::bail!(
+            "--detector onnx needs roadtrack built with the `cnn` feature \
+             (cargo build -p roadtrack-cli --features cnn)"
+        )
+    }
+}
