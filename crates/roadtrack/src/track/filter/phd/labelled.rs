@@ -558,7 +558,7 @@ impl LabelledPhd {
             }
         }
         let mut factor = vec![0.0; n];
-        for i in 0..n {
+        for (i, f) in factor.iter_mut().enumerate() {
             match slot.get(&p.label[i]) {
                 None => {
                     let psi: f64 = (0..m).map(|j| g_at(i, j) / (kappa + c[j])).sum();
@@ -566,7 +566,7 @@ impl LabelledPhd {
                 }
                 Some(&s) => {
                     let own = &c_label[s * m..(s + 1) * m];
-                    factor[i] = (1.0 - pd)
+                    *f = (1.0 - pd)
                         + (0..m)
                             .map(|j| g_at(i, j) / (kappa + (c[j] - own[j]).max(0.0)))
                             .sum::<f64>();
