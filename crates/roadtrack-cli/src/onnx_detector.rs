@@ -129,12 +129,15 @@ impl OnnxArgs {
     /// The detector, loaded (`--detector onnx`).
     #[cfg(feature = "cnn")]
     pub fn spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+        use anyhow::Context as _;
         use roadtrack_cnn::detector::{
             Channels, DetrScores, Layout, OnnxDetector, OnnxDetectorConfig, Resize,
         };
         let model = self.model()?;
-        let mut config: OnnxDetectorConfig =
-            crate::common::load_config(self.onnx_config.as_deref())?;
+        let mut config: OnnxDetectorConfig = match self.onnx_config.as_deref() {
+            Some(p) => roadtrack::config::load_toml(p).context("reading --onnx-config")?,
+            None => OnnxDetectorConfig::default(),
+        };
         if let Some(l) = self.layout {
             config.layout = match l {
                 LayoutArg::Auto => Layout::Auto,
