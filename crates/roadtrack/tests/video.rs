@@ -200,3 +200,34 @@ fn a_cut_video_without_a_frame_count_is_judged_by_its_duration() -> roadtrack::R
     assert!(m.contains("noise.mkv") && m.contains("announced"), "{m}");
     Ok(())
 }
+
+#[test]
+fn a_video_wider_than_the_image_side_limit_is_refused_before_decoding() -> roadtrack::Result<()> {
+    if !video::ffmpeg_available() {
+        eprintln!("note: skipping, needs ffmpeg");
+        return Ok(());
+    }
+    let dir = tempfile::tempdir().map_err(|e| roadtrack::Error::io("tmp", e))?;
+    let p = dir.path().join("wide.nut");
+    // 16 400 × 2 px raw frames: tiny on disk, one pixel column past the limit.
+    let ok = std::process::Command::new("ffmpeg")
+        .args([
+            "-v",
+            "error",
+            "-f",
+            "lavfi",
+            "-i",
+            "color=s=16400x2:d=0.2:r=10",
+        ])
+        .args(["-c:v", "rawvideo", "-pix_fmt", "rgb24", "-y"])
+        .arg(&p)
+        .status()
+        .map_err(|e| roadtrack::Error::io(&p, e))?
+        .success();
+    assert!(ok, "ffmpeg made no test video");
+    let m = source::open(&p, &SourceOptions::default())
+        .expect_err("too wide")
+        .to_string();
+    assert!(m.contains("wide.nut") && m.contains("16384"), "{m}");
+    Ok(())
+}

@@ -224,6 +224,17 @@ pub fn probe(path: &Path) -> Result<Probe> {
     if width == 0 || height == 0 {
         return Err(bad("non-zero size"));
     }
+    // A frame buffer is width × height × 3 bytes: bound the sides before any is made.
+    let side = crate::limits::MAX_IMAGE_SIDE;
+    if width > side || height > side {
+        return Err(Error::Frame {
+            path: path.to_owned(),
+            frame: 1,
+            message: format!(
+                "{width}×{height} px exceeds the limit of {side} px a side (docs/FORMATS.md, Limits)"
+            ),
+        });
+    }
     Ok(Probe {
         width,
         height,
