@@ -354,3 +354,17 @@ fn other_counts_and_spans_are_bounded() {
     ]);
     refused(&o, 1, &["min_window_px", "16384"]);
 }
+
+#[test]
+fn filter_refuses_a_measurement_far_outside_any_scene() {
+    // One coordinate of 1e308 used to stretch the default region until the filter
+    // reported no estimate at all, with exit 0.
+    let d = tempfile::tempdir().expect("tempdir");
+    let m = write(
+        d.path(),
+        "measurements.csv",
+        "step,x,y\n1,10,10\n2,1e308,10\n",
+    );
+    let o = run(&[&"filter", &m, &"-o", &d.path().join("e.csv")]);
+    refused(&o, 1, &["measurements.csv:3", "`x`", "1e9"]);
+}

@@ -62,6 +62,12 @@ pub const MAX_NEGATIVES_PER_POSITIVE: f64 = 100.0;
 // Choice: 1 000 frames/s covers high-speed cameras; the lower bound is "> 0".
 pub const MAX_FPS: f64 = 1_000.0;
 
+/// The largest magnitude of a point measurement's coordinate (any units).
+// Choice: 10⁹ (a million km in metres, or pixels of no camera); beyond it a stray value
+// (1e308) stretches the default surveillance region until every density underflows and
+// the filter silently reports nothing.
+pub const MAX_COORDINATE: f64 = 1e9;
+
 /// The longest time span, s: a time in a trajectories file, `SimConfig::warmup_s`, and the
 /// simulated time (warm-up plus frames / fps).
 // Choice: one day; a simulation is for minutes to hours of traffic.

@@ -4,7 +4,7 @@
 use super::table::{Table, num};
 use crate::error::Result;
 use crate::geometry::Point;
-use crate::limits::{MAX_MEASUREMENTS_PER_STEP, MAX_STEP, at_most};
+use crate::limits::{MAX_COORDINATE, MAX_MEASUREMENTS_PER_STEP, MAX_STEP, at_most};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -52,9 +52,15 @@ pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>> {
         *n += 1;
         at_most(*n, MAX_MEASUREMENTS_PER_STEP, "measurements in one step")
             .map_err(|m| row.error("step", format!("step {step}: {m}")))?;
+        let coord = |c: &str| -> Result<f64> {
+            let v = row.f64(c)?;
+            at_most(v.abs(), MAX_COORDINATE, "coordinate magnitude")
+                .map_err(|m| row.error(c, m))?;
+            Ok(v)
+        };
         out.push(Measurement {
             step,
-            pos: Point::new(row.f64("x")?, row.f64("y")?),
+            pos: Point::new(coord("x")?, coord("y")?),
         });
         Ok(())
     })?;
