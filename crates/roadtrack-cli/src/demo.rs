@@ -262,19 +262,13 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         );
         let _ = writeln!(
             sections,
-            "Turning movements (objects per origin → destination arm):\n"
+            "Turning movements (complete trips per origin → destination arm):\n"
         );
         let _ = writeln!(
             sections,
             "| origin | destination | class | count |\n| --- | --- | --- | --- |"
         );
-        for o in &analysis.od {
-            let _ = writeln!(
-                sections,
-                "| {} | {} | {} | {} |",
-                o.origin, o.destination, o.class, o.count
-            );
-        }
+        od_table(&mut sections, &analysis);
         let _ = writeln!(sections, "\n```text\n{}```", eval::format_table(&report));
     }
     // Ground-truth turning movements for comparison.
@@ -302,15 +296,9 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
     }
     let _ = writeln!(
         page,
-        "\nGround-truth turning movements:\n\n| origin | destination | class | count |\n| --- | --- | --- | --- |"
+        "\nGround-truth turning movements (complete trips):\n\n| origin | destination | class | count |\n| --- | --- | --- | --- |"
     );
-    for o in &truth_analysis.od {
-        let _ = writeln!(
-            page,
-            "| {} | {} | {} | {} |",
-            o.origin, o.destination, o.class, o.count
-        );
-    }
+    od_table(&mut page, &truth_analysis);
     page.push_str(&sections);
     let report = dir.join("report.md");
     roadtrack::io::atomic::write_bytes_atomic(&report, page.as_bytes())?;
@@ -325,4 +313,31 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         report,
         methods: results,
     })
+}
+
+/// The complete trips of `a` as table rows (under a header already written), then the
+/// objects first and last seen in one arm, apart: they are not turning movements.
+fn od_table(out: &mut String, a: &analysis::Analysis) {
+    if a.od.is_empty() {
+        let _ = writeln!(out, "| (no complete trip in the observed time) | | | 0 |");
+    }
+    for o in &a.od {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} |",
+            o.origin, o.destination, o.class, o.count
+        );
+    }
+    if !a.od_incomplete.is_empty() {
+        let list: Vec<String> = a
+            .od_incomplete
+            .iter()
+            .map(|o| format!("{} {} in {}", o.count, o.class, o.origin))
+            .collect();
+        let _ = writeln!(
+            out,
+            "\nIncomplete (first and last seen in the same arm, not counted): {}.",
+            list.join(", ")
+        );
+    }
 }

@@ -115,6 +115,10 @@ fn csv<T: serde::Serialize>(rows: &[T]) -> Result<String> {
 fn write_outputs(dir: &Path, a: &Analysis) -> Result<()> {
     write_bytes_atomic(&dir.join("counts.csv"), csv(&a.counts)?.as_bytes())?;
     write_bytes_atomic(&dir.join("od.csv"), csv(&a.od)?.as_bytes())?;
+    write_bytes_atomic(
+        &dir.join("od_incomplete.csv"),
+        csv(&a.od_incomplete)?.as_bytes(),
+    )?;
     write_bytes_atomic(&dir.join("speeds.csv"), csv(&a.speeds)?.as_bytes())?;
     write_bytes_atomic(&dir.join("headways.csv"), csv(&a.headways)?.as_bytes())?;
     write_bytes_atomic(&dir.join("lanes.csv"), csv(&a.lanes)?.as_bytes())?;
@@ -144,6 +148,13 @@ fn summary(a: &Analysis) -> String {
             s,
             "od     {:>8} → {:<8} {:<11} {}",
             o.origin, o.destination, o.class, o.count
+        );
+    }
+    for o in &a.od_incomplete {
+        let _ = writeln!(
+            s,
+            "incomplete {:>4} (first and last seen) {:<11} {}",
+            o.origin, o.class, o.count
         );
     }
     for v in &a.speeds {

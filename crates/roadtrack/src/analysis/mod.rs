@@ -251,6 +251,10 @@ pub struct Analysis {
     pub counts: Vec<LineCount>,
     /// Origin–destination counts (turning movements).
     pub od: Vec<OdCount>,
+    /// Objects first and last seen in the same zone: not a trip through the junction in
+    /// the observed time (or a broken track), reported apart, never as a U-turn
+    /// (`origin` = `destination` = that zone).
+    pub od_incomplete: Vec<OdCount>,
     /// Objects whose trajectory touched no zone (when zones are given).
     pub od_unassigned: u64,
     /// Speed distributions per class (when points carry ground speeds).
@@ -525,6 +529,7 @@ pub fn analyze(points: &[TrackPoint], site: &Site) -> Result<Analysis> {
 
     // Origin–destination.
     let mut od: BTreeMap<(String, String, String), u64> = BTreeMap::new();
+    let mut incomplete: BTreeMap<(String, String, String), u64> = BTreeMap::new();
     let mut od_unassigned = 0;
     if !site.zone.is_empty() {
         for obj in &objects {
@@ -536,23 +541,37 @@ pub fn analyze(points: &[TrackPoint], site: &Site) -> Result<Analysis> {
             };
             let first = obj.samples.iter().find_map(|s| zone_of(s.1));
             let last = obj.samples.iter().rev().find_map(|s| zone_of(s.1));
+            // Choice: a turning movement is a complete trip, first seen in one zone (arm)
+            // and last seen in another, so it crossed the junction. An object first and
+            // last seen in the same arm (still queued when the video ends, entered and left
+            // the view there, or a track broken at the junction) is counted apart in
+            // `od_incomplete`; a true U-turn cannot be told from it without a junction zone
+            // and is counted there too.
             match (first, last) {
-                (Some(o), Some(d)) => {
+                (Some(o), Some(d)) if o != d => {
                     *od.entry((o, d, obj.class.name().to_owned())).or_default() += 1
+                }
+                (Some(o), Some(d)) => {
+                    *incomplete
+                        .entry((o, d, obj.class.name().to_owned()))
+                        .or_default() += 1
                 }
                 _ => od_unassigned += 1,
             }
         }
     }
-    let od = od
-        .into_iter()
-        .map(|((origin, destination, class), count)| OdCount {
-            origin,
-            destination,
-            class,
-            count,
-        })
-        .collect();
+    let od_rows = |m: BTreeMap<(String, String, String), u64>| -> Vec<OdCount> {
+        m.into_iter()
+            .map(|((origin, destination, class), count)| OdCount {
+                origin,
+                destination,
+                class,
+                count,
+            })
+            .collect()
+    };
+    let od = od_rows(od);
+    let od_incomplete = od_rows(incomplete);
 
     // Speeds: per-object median of the points' ground speeds.
     let mut per_class: BTreeMap<String, Vec<f64>> = BTreeMap::new();
@@ -629,6 +648,7 @@ pub fn analyze(points: &[TrackPoint], site: &Site) -> Result<Analysis> {
         tracks,
         counts,
         od,
+        od_incomplete,
         od_unassigned,
         speeds,
         headways,
