@@ -10,28 +10,12 @@
 
 mod fuzzkit;
 
-use fuzzkit::{DEEP, Syntax, line_count, run};
+use fuzzkit::{DEEP, Syntax, file_error, run};
 use roadtrack_core::Error;
 use roadtrack_core::io::{
     detections, matches, mot, occlusion, points, seqinfo::SeqInfo, series, trajectories,
 };
 use std::path::Path;
-
-/// An error is allowed when it names `path` (and, for a parse error, a line of the file).
-fn file_error(e: &Error, path: &Path, bytes: &[u8]) -> Result<(), String> {
-    match e {
-        Error::Parse { path: p, line, .. } if p == path => {
-            let lines = line_count(bytes);
-            if *line >= 1 && *line <= lines {
-                Ok(())
-            } else {
-                Err(format!("line {line} outside 1..={lines}: {e}"))
-            }
-        }
-        Error::Format { path: p, .. } if p == path => Ok(()),
-        other => Err(format!("unexpected error kind: {other:?}")),
-    }
-}
 
 /// A fuzz target: file name, seeds, syntax and the reader with its checks of an `Ok` result.
 struct Target {

@@ -14,26 +14,10 @@
 #[path = "../../roadtrack-core/tests/fuzzkit/mod.rs"]
 mod fuzzkit;
 
-use fuzzkit::{DEEP, Syntax, line_count, run};
+use fuzzkit::{DEEP, Syntax, file_error, run};
 use roadtrack::Error;
 use roadtrack::detect::file::FileDetector;
 use roadtrack_sim::{ExternalTrajectories, SimConfig};
-use std::path::Path;
-
-fn file_error(e: &Error, path: &Path, bytes: &[u8]) -> Result<(), String> {
-    match e {
-        Error::Parse { path: p, line, .. } if p == path => {
-            let lines = line_count(bytes);
-            if *line >= 1 && *line <= lines {
-                Ok(())
-            } else {
-                Err(format!("line {line} outside 1..={lines}: {e}"))
-            }
-        }
-        Error::Format { path: p, .. } if p == path => Ok(()),
-        other => Err(format!("unexpected error kind: {other:?}")),
-    }
-}
 
 const DETECTIONS_CSV: &[&str] = &[
     "frame,id,x,y,w,h,r,g,b,class,score\n1,1,10.5,20,4,6,10,20,30,car,0.9\n1,2,30,40,5,5,0,0,255,person,1\n3,1,11,21,4,6,10,20,30,car,0.8\n",

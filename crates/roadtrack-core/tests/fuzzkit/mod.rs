@@ -439,3 +439,23 @@ pub fn write_case(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
     }
     std::fs::write(path, bytes).map_err(|e| format!("cannot write the case: {e}"))
 }
+
+/// An error is allowed when it names `path` (and, for a parse error, a line of the file).
+pub fn file_error(
+    e: &roadtrack_core::Error,
+    path: &std::path::Path,
+    bytes: &[u8],
+) -> Result<(), String> {
+    match e {
+        roadtrack_core::Error::Parse { path: p, line, .. } if p == path => {
+            let lines = line_count(bytes);
+            if *line >= 1 && *line <= lines {
+                Ok(())
+            } else {
+                Err(format!("line {line} outside 1..={lines}: {e}"))
+            }
+        }
+        roadtrack_core::Error::Format { path: p, .. } if p == path => Ok(()),
+        other => Err(format!("unexpected error kind: {other:?}")),
+    }
+}
