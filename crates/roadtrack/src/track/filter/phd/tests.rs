@@ -443,21 +443,28 @@ fn matched_colour() -> ColourLikelihoodConfig {
     }
 }
 
-#[test]
-fn phd_weight_sum_tracks_the_object_count_from_detections() -> Result<()> {
+/// The 15-frame squares scene and a PHD tracker with `config` started from one detection
+/// per square in frame 1.
+fn squares_started_from_detections(config: PhdConfig) -> Result<(Vec<Frame>, PhdTracker)> {
     let (frames, starts) = squares(15);
     let boxes: Vec<BBox> = starts
         .iter()
         .map(|&p| BBox::from_centre(p, 20.0, 20.0))
         .collect();
     let lik = ColourLikelihood::from_boxes(matched_colour(), &frames[0].image, &boxes)?;
-    let mut t = PhdTracker::new(PhdConfig::default(), Box::new(lik), 3)?;
+    let mut t = PhdTracker::new(config, Box::new(lik), 3)?;
     let dets: Vec<crate::detection::Detection> = starts
         .iter()
         .enumerate()
         .map(|(k, &p)| crate::detection::Detection::at(1, k as u64 + 1, p))
         .collect();
     t.start_from_detections(&dets);
+    Ok((frames, t))
+}
+
+#[test]
+fn phd_weight_sum_tracks_the_object_count_from_detections() -> Result<()> {
+    let (frames, mut t) = squares_started_from_detections(PhdConfig::default())?;
     for f in &frames {
         let out = t.step(f)?;
         // With C(y) per label and no p_D in it (eq. 13), a detected object's weight W
@@ -480,23 +487,11 @@ fn bernoulli_labels_hold_one_object_each_from_detections() -> Result<()> {
     // The scene of the test above with LabelUpdate::Bernoulli: each tracked object's label
     // settles near 1 instead of (1 − p_D)·p_s·W + p_D·C/(κ + C). (Reported scores are the
     // label weights capped at 1.)
-    let (frames, starts) = squares(15);
-    let boxes: Vec<BBox> = starts
-        .iter()
-        .map(|&p| BBox::from_centre(p, 20.0, 20.0))
-        .collect();
-    let lik = ColourLikelihood::from_boxes(matched_colour(), &frames[0].image, &boxes)?;
     let cfg = PhdConfig {
         label_update: LabelUpdate::Bernoulli,
         ..PhdConfig::default()
     };
-    let mut t = PhdTracker::new(cfg, Box::new(lik), 3)?;
-    let dets: Vec<crate::detection::Detection> = starts
-        .iter()
-        .enumerate()
-        .map(|(k, &p)| crate::detection::Detection::at(1, k as u64 + 1, p))
-        .collect();
-    t.start_from_detections(&dets);
+    let (frames, mut t) = squares_started_from_detections(cfg)?;
     for f in &frames {
         let out = t.step(f)?;
         let ids: Vec<u64> = out.iter().map(|p| p.id).collect();
