@@ -39,7 +39,7 @@ pub struct Args {
     /// queued vehicles out of the background) or median (the earlier behaviour); overrides
     /// the config.
     #[arg(long, value_enum, value_name = "S")]
-    pub startup: Option<StartupArg>,
+    pub startup: Option<Startup>,
     /// Camera calibration TOML (as `roadtrack simulate` writes), for --split.
     #[arg(long, value_name = "F.toml")]
     pub calibration: Option<PathBuf>,
@@ -60,15 +60,6 @@ pub struct Args {
     pub detector: DetectorArgs,
     #[command(flatten)]
     pub frames: FrameArgs,
-}
-
-/// The start-ups of `--startup`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum StartupArg {
-    /// The most persistent colour of the sampled frames.
-    Persistent,
-    /// The per-pixel median of the sampled frames.
-    Median,
 }
 
 pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
@@ -99,10 +90,7 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     }
     let mut config: BackgroundDetectorConfig = load_config(args.config.as_deref())?;
     if let Some(s) = args.startup {
-        config.background.startup = match s {
-            StartupArg::Persistent => Startup::Persistent,
-            StartupArg::Median => Startup::Median,
-        };
+        config.background.startup = s;
     }
     if let Some(path) = &args.calibration {
         config.calibration = Some(Box::new(roadtrack::calibration::Calibration::load(path)?));

@@ -66,6 +66,7 @@ pub struct BackgroundConfig {
 
 /// How the initial background is made from the sampled frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Startup {
     /// Per-pixel median of each channel (the earlier behaviour; `--as-published`).
