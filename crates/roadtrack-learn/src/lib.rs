@@ -1,0 +1,3 @@
+//! Training roadtrack's learned detector with burn (skeleton; the training code lands next).
+
+pub use burn;
