@@ -1,7 +1,7 @@
 //! End-to-end tests of `roadtrack track`.
 
 mod common;
-use common::bin;
+use common::{bin, stderr};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::Path;
@@ -251,5 +251,90 @@ fn a_model_trained_by_train_is_loaded_by_the_tracker_densely_and_per_window() {
             .expect("run");
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         check_tracks(&tracks, 10);
+    }
+}
+
+/// Issue 14: the same input and seed give byte-identical tracks whatever the thread count,
+/// for every method (rayon's pool is sized by `RAYON_NUM_THREADS`).
+#[test]
+fn every_method_writes_identical_tracks_at_one_and_two_threads() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Intersection, ViewKind::Oblique, 25);
+    for method in ["relaxation", "mrf", "pf", "phd"] {
+        let run = |threads: &str| {
+            let out = dir.path().join(format!("{method}-{threads}.txt"));
+            let o = bin()
+                .env("RAYON_NUM_THREADS", threads)
+                .arg("track")
+                .arg(&seq)
+                .args(["--method", method, "-q", "--seed", "11", "-o"])
+                .arg(&out)
+                .output()
+                .expect("run");
+            assert!(o.status.success(), "{method}: {}", stderr(&o));
+            std::fs::read(out).expect("read")
+        };
+        let one = run("1");
+        assert!(!one.is_empty(), "{method} wrote no tracks");
+        assert_eq!(one, run("2"), "{method}: 1 and 2 threads differ");
+    }
+}
+
+/// Issue 13 "bad input": an empty or malformed detections file, or detections for frames
+/// the input lacks, exit 1 naming the file (and the line), never a panic.
+#[test]
+fn bad_public_detections_exit_1_naming_the_file_and_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Road, ViewKind::Aerial, 8);
+    let cases = [
+        ("empty.txt", String::new(), None),
+        (
+            "cut.txt",
+            "1,-1,10,10,20,20,0.9,-1,-1,-1\n2,-1,10,10\n".to_string(),
+            Some(2),
+        ),
+        (
+            "nan.csv",
+            "frame,x,y\n1,5,5\n2,nan,5\n".to_string(),
+            Some(3),
+        ),
+        (
+            "late.txt",
+            "1,-1,10,10,20,20,0.9,-1,-1,-1\n50,-1,10,10,20,20,0.9,-1,-1,-1\n".to_string(),
+            Some(2),
+        ),
+    ];
+    for (name, text, line) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        for method in ["relaxation", "mrf", "pf", "phd"] {
+            let o = bin()
+                .arg("track")
+                .arg(&seq)
+                .args([
+                    "--method",
+                    method,
+                    "-q",
+                    "--detector",
+                    "file",
+                    "--detections",
+                ])
+                .arg(&path)
+                .arg("-o")
+                .arg(dir.path().join("t.txt"))
+                .output()
+                .expect("run");
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{name} {method}: {err}");
+            assert!(err.contains(name), "{name} {method}: {err}");
+            if let Some(line) = line {
+                let named = err.contains(&format!("{name}:{line}"))
+                    || err.contains(&format!("{name}, line {line}"));
+                assert!(named, "{name} {method}: line {line}: {err}");
+            }
+            assert!(!err.contains("panicked"), "{name} {method}: {err}");
+        }
     }
 }
