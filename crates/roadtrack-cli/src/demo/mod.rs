@@ -9,7 +9,7 @@ mod report;
 use crate::common::DetectorArgs;
 use crate::overlay::OverlaySink;
 use anyhow::{Context, Result};
-use roadtrack::analysis::ground::GroundStage;
+use roadtrack::analysis::ground::{GroundStage, OffGroundFilter};
 use roadtrack::analysis::{self, Analysis, Coordinates, CountLine, Site, StitchConfig, Zone};
 use roadtrack::calibration::Calibration;
 use roadtrack::eval::{self, ClassMode, EvalConfig};
@@ -257,6 +257,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
             detector,
             vec![
                 Box::new(LifecycleStage::new(LifecycleConfig::default())?),
+                Box::new(OffGroundFilter::new(&calibration, None)),
                 Box::new(GroundStage::new(&calibration, None, 0.5)?),
             ],
             vec![
