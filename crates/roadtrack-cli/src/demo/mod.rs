@@ -16,6 +16,7 @@ use roadtrack::eval::{self, ClassMode, EvalConfig};
 use roadtrack::io::{self, SourceOptions, mot, sink, source};
 use roadtrack::track::confirm::{LifecycleConfig, LifecycleStage};
 use roadtrack::track::pipeline::{MotSink, TrajectoriesSink};
+use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::replay::ReplayTracker;
 use roadtrack::track::{Method, MethodConfig, Pipeline, track_source};
@@ -28,7 +29,8 @@ use std::path::{Path, PathBuf};
 
 /// The demo's frame rate, frames/s.
 pub const DEFAULT_FPS: f64 = 10.0;
-/// The demo's frames by default: one signal cycle of [`demo_signal`] and a little more.
+/// The demo's frames by default: one signal cycle of [`demo_signal`] (67 s) and a little
+/// more.
 pub const DEFAULT_FRAMES: u32 = 700;
 
 /// What the demo runs.
@@ -45,8 +47,8 @@ pub struct DemoConfig {
     /// The detector every method uses (`--detector`; none: each method's own background
     /// detector). `--detector file` reads the simulated sequence's `det/det.txt`.
     pub detector: DetectorArgs,
-    /// Relaxation's tracker settings.
-    pub relaxation: RelaxationTrackerConfig,
+    /// Relaxation's tracker settings; `None`: [`demo_relaxation`].
+    pub relaxation: Option<RelaxationTrackerConfig>,
 }
 
 impl Default for DemoConfig {
@@ -57,15 +59,39 @@ impl Default for DemoConfig {
             seed: 0,
             video: true,
             detector: DetectorArgs::default(),
-            relaxation: RelaxationTrackerConfig::default(),
+            relaxation: None,
         }
     }
+}
+
+/// `configs/relaxation-intersection.toml`, built in.
+const RELAXATION_INTERSECTION: &str =
+    include_str!("../../../../configs/relaxation-intersection.toml");
+
+/// The demo's relaxation: the tracker's defaults with the matcher settings of
+/// `configs/relaxation-intersection.toml` (or that file's tracker settings, when it holds a
+/// whole `RelaxationTrackerConfig`).
+// Choice: the paper's settings are for frames 1.5 s apart; at the demo's 10 frames/s the
+// intersection settings score far higher (docs/EXPERIMENTS.md, "Demo").
+pub fn demo_relaxation() -> Result<RelaxationTrackerConfig> {
+    use roadtrack::config::Validate;
+    let name = "configs/relaxation-intersection.toml";
+    let config = match toml::from_str::<RelaxationTrackerConfig>(RELAXATION_INTERSECTION) {
+        Ok(c) => c,
+        Err(_) => RelaxationTrackerConfig {
+            relaxation: toml::from_str::<RelaxationConfig>(RELAXATION_INTERSECTION)
+                .with_context(|| format!("reading the built-in {name}"))?,
+            ..RelaxationTrackerConfig::default()
+        },
+    };
+    Validate::validate(&config).with_context(|| format!("the built-in {name}"))?;
+    Ok(config)
 }
 
 /// The demo's signal plan: the simulator's phases (N–S through, N–S left, E–W through,
 /// E–W left, pedestrians) with shorter greens, so that one whole cycle fits a demo that
 /// runs in a minute.
-// Choice: 12 s through, 5 s left, 8 s walk, 3 s yellow and 2 s all-red: a 64 s cycle
+// Choice: 12 s through, 5 s left, 8 s walk, 3 s yellow and 2 s all-red: a 67 s cycle
 // instead of the simulator's 104 s, so that 700 frames at 10 frames/s hold a whole cycle
 // wherever the seed starts it (the arrivals per hour are the simulator's).
 pub fn demo_signal() -> IntersectionSignalConfig {
@@ -144,8 +170,8 @@ struct MethodRun {
     analysis: Analysis,
     /// The eval table.
     metrics: String,
-    /// File name of the overlay (video or folder).
-    overlay: String,
+    /// File name of the whole overlay (video or folder), when rendered.
+    overlay: Option<String>,
 }
 
 /// The methods the demo compares, in the papers' order.
@@ -204,6 +230,20 @@ pub fn intersection_site() -> Site {
     }
 }
 
+/// What every method's run shares.
+struct Shared<'a> {
+    cfg: &'a DemoConfig,
+    relaxation: &'a RelaxationTrackerConfig,
+    dir: &'a Path,
+    seq: &'a Path,
+    fps: f64,
+    calibration: &'a Calibration,
+    gt: &'a [mot::MotGtRow],
+    truth: &'a [TrackPoint],
+    truth_analysis: &'a Analysis,
+    background: Option<&'a image::RgbImage>,
+}
+
 /// Runs the demo into `dir`; `step` is told what is being done.
 pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Result<DemoReport> {
     if cfg.frames < 20 {
@@ -221,129 +261,45 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         .next()
         .transpose()?
         .map(|f| f.image);
-    let eval_cfg = EvalConfig {
-        mode: ClassMode::ClassAgnostic,
-        num_frames: Some(cfg.frames),
-        ..Default::default()
-    };
     // Ground-truth counts and turning movements, the yardstick of every method's.
     let mut truth_g = truth.clone();
     analysis::ground::attach_calibration(&mut truth_g, &calibration, None, 0.5)?;
     let truth_analysis = analysis::analyze(&truth_g, &intersection_site())?;
-    let mut runs = Vec::new();
-    for method in methods() {
-        let name = method.name();
-        step(&format!("tracking with {name}"));
-        let mdir = dir.join(name);
-        let config = match MethodConfig::defaults(method, cfg.seed) {
-            MethodConfig::Relaxation { detector, .. } => MethodConfig::Relaxation {
-                tracker: Box::new(cfg.relaxation.clone()),
-                detector,
-            },
-            other => other,
-        }
-        .with_calibration(&calibration);
-        let own = config.background_detector();
-        let detector = cfg
-            .detector
-            .spec(&seq, || Ok(own))
-            .with_context(|| format!("the detector of {name}"))?;
-        let t0 = std::time::Instant::now();
-        let mut points: Vec<TrackPoint> = Vec::new();
-        track_source(
-            &seq,
-            &SourceOptions::default(),
-            config,
-            detector,
-            vec![
-                Box::new(LifecycleStage::new(LifecycleConfig::default())?),
-                Box::new(OffGroundFilter::new(&calibration, None)),
-                Box::new(GroundStage::new(&calibration, None, 0.5)?),
-            ],
-            vec![
-                Box::new(MotSink::create(&mdir.join("tracks.txt"))?),
-                Box::new(TrajectoriesSink::create(
-                    &mdir.join("trajectories.csv"),
-                    true,
-                )?),
-                Box::new(&mut points),
-            ],
-            &mut |_, _| {},
-        )?;
-        let seconds = t0.elapsed().as_secs_f64();
-        let (rows, _) = eval::rows_from_points(&points);
-        let scores = eval::evaluate(&gt, &rows, &eval_cfg)?;
-        let metrics = eval::format_table(&scores);
-        roadtrack::io::atomic::write_bytes_atomic(&mdir.join("metrics.txt"), metrics.as_bytes())?;
-        step(&format!("rendering {name}"));
-        let video = cfg.video && roadtrack::io::video::ffmpeg_available();
-        let overlay = if video {
-            mdir.join("overlay.mp4")
-        } else {
-            mdir.join("overlay")
-        };
-        // The overlay, and a still of the middle frame with the trails built up to it.
-        let mut sink = OverlaySink::new(
-            &RenderConfig::default(),
-            Some(&truth),
-            sink::open_sink(&overlay, fps)?,
-        )?;
-        sink.keep_still(cfg.frames / 2);
-        let mut render = Pipeline::new(Box::new(ReplayTracker::new(points.clone())));
-        render.sinks.push(Box::new(&mut sink));
-        render.run(
-            source::open(&seq, &SourceOptions::default())?,
-            None,
-            &mut |_, _| {},
-        )?;
-        drop(render);
-        if let Some(img) = sink.take_still() {
-            let still = mdir.join("overlay_frame.png");
-            roadtrack::io::atomic::write_bytes_atomic(&still, &sink::encode_png(&img, &still)?)?;
-        }
-        roadtrack_viz::plot::plot_trajectories(
-            &points,
-            background.as_ref(),
-            &roadtrack_viz::plot::PlotConfig {
-                title: Some(format!("{name}: trajectories")),
-                ..Default::default()
-            },
-            &mdir.join("trajectories.png"),
-        )?;
-        let analysis = analysis::analyze(&points, &intersection_site())?;
-        roadtrack::io::atomic::write_bytes_atomic(
-            &mdir.join("analysis.json"),
-            to_json(&analysis)?.as_bytes(),
-        )?;
-        let s = &scores.summary;
-        let result = MethodResult {
-            method: name.to_owned(),
-            tracks: points
-                .iter()
-                .map(|p| p.id)
-                .collect::<std::collections::BTreeSet<_>>()
-                .len(),
-            boxes: points.len(),
-            seconds,
-            mota: s.clear.MOTA,
-            idf1: s.identity.IDF1,
-            hota: s.hota.HOTA,
-            idsw: s.clear.IDSW as f64,
-            trips: report::trips(&analysis),
-            incomplete: analysis.od_incomplete.iter().map(|o| o.count).sum(),
-            movement_error: report::movement_error(&analysis, &truth_analysis),
-        };
-        runs.push(MethodRun {
-            result,
-            analysis,
-            metrics,
-            overlay: overlay
-                .file_name()
-                .map_or(String::new(), |f| f.to_string_lossy().into_owned()),
-        });
-    }
+    let relaxation = match &cfg.relaxation {
+        Some(r) => r.clone(),
+        None => demo_relaxation()?,
+    };
+    let shared = Shared {
+        cfg,
+        relaxation: &relaxation,
+        dir,
+        seq: &seq,
+        fps,
+        calibration: &calibration,
+        gt: &gt,
+        truth: &truth,
+        truth_analysis: &truth_analysis,
+        background: background.as_ref(),
+    };
+    let mut runs = run_methods(&shared, step)?;
     // Best first. Choice: ties in HOTA keep the papers' order (a stable sort).
-    runs.sort_by(|a, b| b.result.hota.total_cmp(&a.result.hota));
+    runs.sort_by(|a, b| b.0.result.hota.total_cmp(&a.0.result.hota));
+    // Choice: only the best method's overlay is rendered whole (as a video, or PNG frames);
+    // every method has its still and plot, and `roadtrack render` draws any other from its
+    // tracks.txt. Four whole overlays cost more than all the tracking.
+    if let Some((best, points)) = runs.first_mut() {
+        step(&format!("rendering {}", best.result.method));
+        let name = &best.result.method;
+        let video = cfg.video && roadtrack::io::video::ffmpeg_available();
+        let overlay = dir
+            .join(name)
+            .join(if video { "overlay.mp4" } else { "overlay" });
+        render_overlay(&shared, std::mem::take(points), &overlay, None)?;
+        best.overlay = overlay
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned());
+    }
+    let runs: Vec<MethodRun> = runs.into_iter().map(|r| r.0).collect();
     let facts = report::Facts {
         frames: cfg.frames,
         fps,
@@ -373,6 +329,221 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
     })
 }
 
+/// Runs every method (two or more at a time where the machine has the cores), in the
+/// papers' order whatever order they finish in.
+// Choice: the methods are independent, each with its own seed and its own pass over the
+// frames, so running them side by side changes no output; it is what keeps the whole-cycle
+// demo within a minute on two cores.
+fn run_methods(
+    sh: &Shared<'_>,
+    step: &mut dyn FnMut(&str),
+) -> Result<Vec<(MethodRun, Vec<TrackPoint>)>> {
+    let all = methods();
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, all.len());
+    step(&format!(
+        "tracking with {} ({workers} at a time)",
+        all.map(|m| m.name()).join(", ")
+    ));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut done: Vec<(usize, Result<(MethodRun, Vec<TrackPoint>)>)> =
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..workers)
+                .map(|_| {
+                    scope.spawn(|| {
+                        let mut out = Vec::new();
+                        loop {
+                            let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(&method) = all.get(k) else {
+                                break;
+                            };
+                            out.push((k, run_method(sh, method)));
+                        }
+                        out
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        });
+    done.sort_by_key(|d| d.0);
+    done.into_iter().map(|d| d.1).collect()
+}
+
+/// Tracks with `method`, scores, plots and analyses its tracks, and draws its still (the
+/// middle frame with the trails up to it); the run and its points.
+fn run_method(sh: &Shared<'_>, method: Method) -> Result<(MethodRun, Vec<TrackPoint>)> {
+    let cfg = sh.cfg;
+    let name = method.name();
+    let mdir = sh.dir.join(name);
+    let config = match MethodConfig::defaults(method, cfg.seed) {
+        MethodConfig::Relaxation { detector, .. } => MethodConfig::Relaxation {
+            tracker: Box::new(sh.relaxation.clone()),
+            detector,
+        },
+        other => other,
+    }
+    .with_calibration(sh.calibration);
+    let own = config.background_detector();
+    let detector = cfg
+        .detector
+        .spec(sh.seq, || Ok(own))
+        .with_context(|| format!("the detector of {name}"))?;
+    let t0 = std::time::Instant::now();
+    let mut points: Vec<TrackPoint> = Vec::new();
+    track_source(
+        sh.seq,
+        &SourceOptions::default(),
+        config,
+        detector,
+        vec![
+            Box::new(LifecycleStage::new(LifecycleConfig::default())?),
+            Box::new(OffGroundFilter::new(sh.calibration, None)),
+            Box::new(GroundStage::new(sh.calibration, None, 0.5)?),
+        ],
+        vec![
+            Box::new(MotSink::create(&mdir.join("tracks.txt"))?),
+            Box::new(TrajectoriesSink::create(
+                &mdir.join("trajectories.csv"),
+                true,
+            )?),
+            Box::new(&mut points),
+        ],
+        &mut |_, _| {},
+    )?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let eval_cfg = EvalConfig {
+        mode: ClassMode::ClassAgnostic,
+        num_frames: Some(cfg.frames),
+        ..Default::default()
+    };
+    let (rows, _) = eval::rows_from_points(&points);
+    let scores = eval::evaluate(sh.gt, &rows, &eval_cfg)?;
+    let metrics = eval::format_table(&scores);
+    roadtrack::io::atomic::write_bytes_atomic(&mdir.join("metrics.txt"), metrics.as_bytes())?;
+    let still = mdir.join("overlay_frame.png");
+    render_overlay(sh, points.clone(), &still, Some(cfg.frames / 2))?;
+    roadtrack_viz::plot::plot_trajectories(
+        &points,
+        sh.background,
+        &roadtrack_viz::plot::PlotConfig {
+            title: Some(format!("{name}: trajectories")),
+            ..Default::default()
+        },
+        &mdir.join("trajectories.png"),
+    )?;
+    let analysis = analysis::analyze(&points, &intersection_site())?;
+    roadtrack::io::atomic::write_bytes_atomic(
+        &mdir.join("analysis.json"),
+        to_json(&analysis)?.as_bytes(),
+    )?;
+    let s = &scores.summary;
+    let result = MethodResult {
+        method: name.to_owned(),
+        tracks: points
+            .iter()
+            .map(|p| p.id)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len(),
+        boxes: points.len(),
+        seconds,
+        mota: s.clear.MOTA,
+        idf1: s.identity.IDF1,
+        hota: s.hota.HOTA,
+        idsw: s.clear.IDSW as f64,
+        trips: report::trips(&analysis),
+        incomplete: analysis.od_incomplete.iter().map(|o| o.count).sum(),
+        movement_error: report::movement_error(&analysis, sh.truth_analysis),
+    };
+    let run = MethodRun {
+        result,
+        analysis,
+        metrics,
+        overlay: None,
+    };
+    Ok((run, points))
+}
+
+/// Draws `points` beside the truth: every frame into `out` (a video or a PNG folder), or
+/// with `still = Some(k)` only frame `k` (with the trails built up to it) as the PNG `out`.
+fn render_overlay(
+    sh: &Shared<'_>,
+    points: Vec<TrackPoint>,
+    out: &Path,
+    still: Option<u32>,
+) -> Result<()> {
+    let config = RenderConfig::default();
+    let options = match still {
+        // The frames whose trails reach the still, and the still.
+        Some(k) => SourceOptions {
+            start: k.saturating_sub(config.trail_frames).max(1),
+            end: Some(k),
+            ..SourceOptions::default()
+        },
+        None => SourceOptions::default(),
+    };
+    let target: Box<dyn sink::FrameSink> = match still {
+        Some(_) => Box::new(Discard),
+        None => sink::open_sink(out, sh.fps)?,
+    };
+    let mut overlay = OverlaySink::new(&config, Some(sh.truth), target)?;
+    if let Some(k) = still {
+        overlay.keep_still(k);
+    }
+    let mut render = Pipeline::new(Box::new(ReplayTracker::new(points)));
+    render.sinks.push(Box::new(&mut overlay));
+    render.run(source::open(sh.seq, &options)?, None, &mut |_, _| {})?;
+    drop(render);
+    if let Some(img) = overlay.take_still() {
+        roadtrack::io::atomic::write_bytes_atomic(out, &sink::encode_png(&img, out)?)?;
+    }
+    Ok(())
+}
+
+/// A frame sink that keeps nothing (the still is taken from the overlay sink).
+struct Discard;
+
+impl sink::FrameSink for Discard {
+    fn write_frame(&mut self, _index: u32, _image: &image::RgbImage) -> roadtrack::Result<()> {
+        Ok(())
+    }
+
+    fn finish(&mut self) -> roadtrack::Result<()> {
+        Ok(())
+    }
+}
+
 fn to_json<T: Serialize>(value: &T) -> Result<String> {
     Ok(serde_json::to_string_pretty(value).context("writing JSON")?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The built-in relaxation settings are the intersection file's, not the paper's.
+    #[test]
+    fn demo_relaxation_reads_the_intersection_config() -> Result<()> {
+        let built_in = demo_relaxation()?;
+        assert_ne!(
+            built_in.relaxation,
+            RelaxationTrackerConfig::default().relaxation
+        );
+        Ok(())
+    }
+
+    /// One whole signal cycle fits the default demo.
+    #[test]
+    fn the_default_demo_holds_a_whole_signal_cycle() {
+        let sim = demo_sim_config(DEFAULT_FRAMES, DEFAULT_FPS);
+        let cycle = cycle_s(&sim);
+        assert!(cycle > 0.0);
+        assert!(
+            f64::from(DEFAULT_FRAMES) / DEFAULT_FPS >= cycle,
+            "{cycle} s"
+        );
+    }
 }

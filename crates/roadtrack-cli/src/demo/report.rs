@@ -252,10 +252,17 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
         let name = &run.result.method;
         let _ = writeln!(page, "\n## {name}\n");
         let _ = writeln!(page, "![{name} overlay]({name}/overlay_frame.png)\n");
+        let whole = match &run.overlay {
+            Some(f) => format!("`{name}/{f}`"),
+            None => format!(
+                "`roadtrack render sequence --tracks {name}/tracks.txt --truth sequence -o \
+                 {name}.mp4`"
+            ),
+        };
         let _ = writeln!(
             page,
-            "Left: tracks; right: ground truth. Full sequence: `{name}/{}`.\n",
-            run.overlay
+            "Left: tracks; right: ground truth (frame {}). Full sequence: {whole}.\n",
+            facts.frames / 2
         );
         let _ = writeln!(page, "![{name} trajectories]({name}/trajectories.png)\n");
         let _ = writeln!(
