@@ -334,10 +334,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
 // Choice: the methods are independent, each with its own seed and its own pass over the
 // frames, so running them side by side changes no output; it is what keeps the whole-cycle
 // demo within a minute on two cores.
-fn run_methods(
-    sh: &Shared<'_>,
-    step: &mut dyn FnMut(&str),
-) -> Result<Vec<(MethodRun, Vec<TrackPoint>)>> {
+fn run_methods(sh: &Shared<'_>, step: &mut dyn FnMut(&str)) -> Result<Vec<Ran>> {
     let all = methods();
     let workers = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
@@ -347,35 +344,37 @@ fn run_methods(
         all.map(|m| m.name()).join(", ")
     ));
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut done: Vec<(usize, Result<(MethodRun, Vec<TrackPoint>)>)> =
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = (0..workers)
-                .map(|_| {
-                    scope.spawn(|| {
-                        let mut out = Vec::new();
-                        loop {
-                            let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(&method) = all.get(k) else {
-                                break;
-                            };
-                            out.push((k, run_method(sh, method)));
-                        }
-                        out
-                    })
+    let mut done: Vec<(usize, Result<Ran>)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut out = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&method) = all.get(k) else {
+                            break;
+                        };
+                        out.push((k, run_method(sh, method)));
+                    }
+                    out
                 })
-                .collect();
-            handles
-                .into_iter()
-                .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-                .collect()
-        });
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
     done.sort_by_key(|d| d.0);
     done.into_iter().map(|d| d.1).collect()
 }
 
+/// A method's run and its points.
+type Ran = (MethodRun, Vec<TrackPoint>);
+
 /// Tracks with `method`, scores, plots and analyses its tracks, and draws its still (the
 /// middle frame with the trails up to it); the run and its points.
-fn run_method(sh: &Shared<'_>, method: Method) -> Result<(MethodRun, Vec<TrackPoint>)> {
+fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
     let cfg = sh.cfg;
     let name = method.name();
     let mdir = sh.dir.join(name);
@@ -517,7 +516,7 @@ impl sink::FrameSink for Discard {
 }
 
 fn to_json<T: Serialize>(value: &T) -> Result<String> {
-    Ok(serde_json::to_string_pretty(value).context("writing JSON")?)
+    serde_json::to_string_pretty(value).context("writing JSON")
 }
 
 #[cfg(test)]
