@@ -265,7 +265,7 @@ impl LifecycleArgs {
 }
 
 /// Which detector finds the objects (`detect`, `track`, `render`, `demo`).
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone, Default, clap::Args)]
 pub struct DetectorArgs {
     /// Object detector (default: background subtraction).
     #[arg(long, value_enum, value_name = "D")]

@@ -196,3 +196,51 @@ fn counts_and_turning_movements_on_a_simulated_intersection_equal_the_truth() {
         assert!(files.contains(f), "{f} missing: {files:?}");
     }
 }
+
+/// `track --calibration` drops boxes that stand above the horizon (they have no ground
+/// position) instead of failing the run: a detection in the sky of the oblique view, in
+/// every frame, leaves no track, and the rest are tracked and put on the ground.
+#[test]
+fn track_with_calibration_drops_boxes_above_the_horizon() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    let cfg = SimConfig {
+        scene: SceneKind::Intersection,
+        view: ViewKind::Oblique,
+        frames: 10,
+        ..Default::default()
+    };
+    roadtrack_sim::simulate(&cfg, 3, &seq, &mut |_, _| {}).expect("simulate");
+    let mut det = std::fs::read_to_string(seq.join("det/det.txt")).expect("det.txt");
+    for f in 1..=10 {
+        det += &format!("{f},-1,300,5,20,10,0.99,-1,-1,-1\n");
+    }
+    let det_path = dir.path().join("det.txt");
+    std::fs::write(&det_path, det).expect("write");
+    let tracks = dir.path().join("t.txt");
+    let o = Command::new(env!("CARGO_BIN_EXE_roadtrack"))
+        .arg("track")
+        .arg(&seq)
+        .args(["--method", "relaxation", "-q", "--detections"])
+        .arg(&det_path)
+        .arg("--calibration")
+        .arg(seq.join("calibration.toml"))
+        .arg("--trajectories")
+        .arg(dir.path().join("t.csv"))
+        .arg("-o")
+        .arg(&tracks)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = std::fs::read_to_string(&tracks).expect("tracks");
+    assert!(rows.lines().count() > 10, "{rows}");
+    for l in rows.lines() {
+        let top: f64 = l
+            .split(',')
+            .nth(3)
+            .expect("bb_top")
+            .parse()
+            .expect("number");
+        assert!(top > 20.0, "a box in the sky was kept: {l}");
+    }
+}

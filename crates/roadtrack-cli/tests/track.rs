@@ -99,37 +99,6 @@ fn geojson_without_calibration_is_a_usage_error() {
     assert_eq!(o.status.code(), Some(2));
 }
 
-#[test]
-fn demo_reports_every_method_with_pictures() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("demo");
-    let o = bin()
-        .args(["demo", "-q", "--frames", "40", "--no-video", "-o"])
-        .arg(&out)
-        .output()
-        .expect("run");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = std::fs::read_to_string(out.join("report.md")).expect("report");
-    for m in ["relaxation", "mrf", "pf", "phd"] {
-        assert!(
-            report.contains(&format!("| {m} |")),
-            "{m} missing from the metrics table"
-        );
-        assert!(
-            out.join(m).join("overlay_frame.png").is_file(),
-            "{m} still missing"
-        );
-        assert!(
-            out.join(m).join("trajectories.png").is_file(),
-            "{m} plot missing"
-        );
-        assert!(
-            out.join(m).join("tracks.txt").is_file(),
-            "{m} tracks missing"
-        );
-    }
-}
-
 #[cfg(feature = "cnn")]
 const TINY_CNN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

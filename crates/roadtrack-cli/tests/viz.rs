@@ -172,6 +172,60 @@ fn render_reports_bad_tracks_with_file_and_line_and_exits_1() {
     );
 }
 
+/// `render --detections F` (`--detector file`) draws each frame's detections, coloured by
+/// class, without trails; `--detector background` renders too; tracks and a detector
+/// together, or neither, are usage errors.
+#[test]
+fn render_draws_a_detectors_boxes_instead_of_tracks() {
+    let d = tempfile::tempdir().expect("tempdir");
+    // The fixture's two boxes as public detections (MOTChallenge det.txt, no class).
+    let det = d.path().join("det.txt");
+    let mut s = String::new();
+    for i in 1..=10 {
+        s += &format!("{i},-1,{},16,12,8,0.9,-1,-1,-1\n", 4 + 3 * i);
+        s += &format!("{i},-1,{},44,10,10,0.8,-1,-1,-1\n", 80 - 5 * i);
+    }
+    std::fs::write(&det, s).expect("write det");
+    let out = d.path().join("det_overlay");
+    let o = run(bin()
+        .arg("render")
+        .arg(tiny())
+        .arg("--detections")
+        .arg(&det)
+        .arg("-o")
+        .arg(&out));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let f5 = rgb(&out.join("000005.png"));
+    let unknown = roadtrack_viz::overlay::class_colour(&roadtrack::ObjectClass::Unknown);
+    // Frame 5: the red box's left edge at x = 19 and the blue box's right edge at x = 64,
+    // both in the colour of their class (unknown), not of a track id.
+    assert_eq!(f5.get_pixel(19, 20), &unknown);
+    assert_eq!(f5.get_pixel(64, 49), &unknown);
+    // No trail: left of the red box, on its row, the frame shows through unchanged.
+    let under = rgb(&tiny().join("frame5.png"));
+    assert_eq!(f5.get_pixel(16, 20), under.get_pixel(16, 20));
+
+    let out = d.path().join("bg_overlay");
+    let o = run(bin()
+        .arg("render")
+        .arg(tiny())
+        .args(["--detector", "background", "-o"])
+        .arg(&out));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(common::names(&out).len(), 10);
+
+    let tracks = write_tracks(d.path());
+    let o = run(bin()
+        .arg("render")
+        .arg(tiny())
+        .arg("--tracks")
+        .arg(&tracks)
+        .args(["--detector", "background", "-o"])
+        .arg(d.path().join("x")));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--detector"), "{}", stderr(&o));
+}
+
 #[test]
 fn plot_writes_trajectories_over_the_first_frame_and_time_space_svg() {
     let d = tempfile::tempdir().expect("tempdir");

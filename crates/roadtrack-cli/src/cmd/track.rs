@@ -2,7 +2,7 @@
 
 use crate::common::{DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config, report_skipped};
 use anyhow::{Context, Result};
-use roadtrack::analysis::ground::GroundStage;
+use roadtrack::analysis::ground::{GroundStage, OffGroundFilter};
 use roadtrack::analysis::kinematics::GroundPoint;
 use roadtrack::calibration::Calibration;
 use roadtrack::detect::FrameDetections;
@@ -300,6 +300,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         stages.push(Box::new(LifecycleStage::new(lifecycle)?));
     }
     if let Some(cal) = &calibration {
+        // Boxes standing above the horizon (far objects, detector noise) cannot be mapped.
+        stages.push(Box::new(OffGroundFilter::new(cal, args.ground_point)));
         stages.push(Box::new(
             GroundStage::new(cal, args.ground_point, args.smooth_s)
                 .context("putting the tracks on the ground")?,

@@ -82,6 +82,46 @@ impl<'a> GroundStage<'a> {
     }
 }
 
+/// A pipeline stage that drops the points whose ground point (as [`GroundStage`] chooses
+/// it) is on or above the horizon under `calibration`: they cannot stand on the road, and
+/// [`GroundStage`] would fail on them. A box of a far object near the horizon, widened by
+/// detector noise or a tracker's prediction, can end there.
+// Choice: dropped rather than failing the run or kept without a ground position (the
+// trajectories writer wants a ground state on every point); `roadtrack demo` puts this
+// stage before its [`GroundStage`].
+#[derive(Debug)]
+pub struct OffGroundFilter<'a> {
+    calibration: &'a Calibration,
+    ground_point: GroundPoint,
+}
+
+impl<'a> OffGroundFilter<'a> {
+    /// A filter for `calibration`; the ground point as in [`attach_calibration`].
+    pub fn new(calibration: &'a Calibration, ground_point: Option<GroundPoint>) -> Self {
+        Self {
+            calibration,
+            ground_point: kinematics(calibration, ground_point, 0.0).ground_point,
+        }
+    }
+}
+
+impl PointStage for OffGroundFilter<'_> {
+    fn push(&mut self, mut frame: FramePoints) -> Result<Vec<FramePoints>> {
+        frame.points.retain(|p| {
+            let img = match self.ground_point {
+                GroundPoint::BottomCentre => Point::new(p.bbox.centre().x, p.bbox.bottom()),
+                GroundPoint::Centre => p.bbox.centre(),
+            };
+            self.calibration.ground_from_image(img).is_some()
+        });
+        Ok(vec![frame])
+    }
+
+    fn finish(&mut self) -> Result<Vec<FramePoints>> {
+        Ok(Vec::new())
+    }
+}
+
 impl PointStage for GroundStage<'_> {
     fn push(&mut self, frame: FramePoints) -> Result<Vec<FramePoints>> {
         self.0.push(frame)
@@ -89,5 +129,58 @@ impl PointStage for GroundStage<'_> {
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
         self.0.finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::class::ObjectClass;
+    use crate::frame::Frame;
+    use crate::geometry::BBox;
+    use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
+
+    /// Under the oblique intersection camera a box standing in the sky is dropped, one on
+    /// the road kept, and the ground stage then maps every point left.
+    #[test]
+    fn off_ground_filter_drops_boxes_above_the_horizon() -> Result<()> {
+        let cfg = SimConfig {
+            scene: SceneKind::Intersection,
+            view: ViewKind::Oblique,
+            frames: 1,
+            ..Default::default()
+        };
+        let calibration = Simulation::new(&cfg, 0)?.calibration().clone();
+        let frame = Frame {
+            index: 1,
+            time_s: 0.0,
+            image: image::RgbImage::new(4, 4),
+        };
+        let point = |id: u64, top: f64| TrackPoint {
+            frame: 1,
+            time_s: 0.0,
+            id,
+            class: ObjectClass::Unknown,
+            bbox: BBox::new(300.0, top, 20.0, 10.0),
+            score: 1.0,
+            ground: None,
+        };
+        let pts = vec![point(1, 5.0), point(2, 400.0)];
+        let out = OffGroundFilter::new(&calibration, None).push(FramePoints::new(&frame, pts))?;
+        assert_eq!(out.len(), 1);
+        let ids: Vec<u64> = out[0].points.iter().map(|p| p.id).collect();
+        assert_eq!(ids, [2]);
+        let mut ground = GroundStage::new(&calibration, None, 0.5)?;
+        let mut done = ground.push(out[0].clone())?;
+        done.extend(ground.finish()?);
+        assert!(done[0].points[0].ground.is_some());
+        // Without the filter the point in the sky fails the ground stage.
+        let mut ground = GroundStage::new(&calibration, None, 0.5)?;
+        assert!(
+            ground
+                .push(FramePoints::new(&frame, vec![point(1, 5.0)]))
+                .is_err()
+        );
+        Ok(())
     }
 }
