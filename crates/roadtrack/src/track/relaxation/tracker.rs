@@ -53,6 +53,13 @@ pub struct RelaxationTrackerConfig {
     pub rematch_gate_px: f64,
     /// See `rematch_gate_px`. Default 0.75.
     pub rematch_box_fraction: f64,
+    /// Whether each live track enters the matching at its constant-velocity prediction
+    /// for *this* frame rather than one frame before it (ours). The labels are then the
+    /// residuals from the prediction: the gate `D` is centred on it, eq. 15 compares
+    /// residuals (a queued car and a moving one both have residual ≈ 0 when predicted
+    /// well) and `displacement_sd_px` becomes a prior on the prediction error. Default
+    /// false.
+    pub predict: bool,
 }
 
 impl Default for RelaxationTrackerConfig {
@@ -64,6 +71,7 @@ impl Default for RelaxationTrackerConfig {
             rematch: true,
             rematch_gate_px: 10.0,
             rematch_box_fraction: 0.75,
+            predict: false,
         }
     }
 }
@@ -166,7 +174,10 @@ impl RelaxationTracker {
             .iter()
             .enumerate()
             .map(|(n, t)| {
-                let missed = f64::from(frame - t.last_frame - 1);
+                // Choice: with `predict`, the prediction for this frame; otherwise one
+                // frame before it (the label is then the last per-frame displacement).
+                let ahead = frame - t.last_frame - u32::from(!self.config.predict);
+                let missed = f64::from(ahead);
                 let pos = Point::new(
                     t.pos.x + t.velocity[0] * missed,
                     t.pos.y + t.velocity[1] * missed,
