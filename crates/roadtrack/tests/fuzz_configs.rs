@@ -233,7 +233,8 @@ fn committed(name: &str) -> String {
 fn relaxation(cases: u32) {
     let a = committed("relaxation.toml");
     let b = committed("relaxation-intersection.toml");
-    fuzz_config::<RelaxationConfig>("relaxation", cases, &[&a, &b], |c| c.validate(), &[]);
+    let c = committed("relaxation-video.toml");
+    fuzz_config::<RelaxationConfig>("relaxation", cases, &[&a, &b, &c], |c| c.validate(), &[]);
 }
 
 /// 2 000 cases.
