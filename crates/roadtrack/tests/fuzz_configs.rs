@@ -233,8 +233,7 @@ fn committed(name: &str) -> String {
 fn relaxation(cases: u32) {
     let a = committed("relaxation.toml");
     let b = committed("relaxation-intersection.toml");
-    let c = committed("relaxation-video.toml");
-    fuzz_config::<RelaxationConfig>("relaxation", cases, &[&a, &b, &c], |c| c.validate(), &[]);
+    fuzz_config::<RelaxationConfig>("relaxation", cases, &[&a, &b], |c| c.validate(), &[]);
 }
 
 /// 2 000 cases.
@@ -244,7 +243,14 @@ fn fuzz_relaxation_config() {
 }
 
 fn relaxation_tracker(cases: u32) {
-    fuzz_config::<RelaxationTrackerConfig>("relaxation_tracker", cases, &[], |c| c.validate(), &[]);
+    let video = committed("relaxation-video.toml");
+    fuzz_config::<RelaxationTrackerConfig>(
+        "relaxation_tracker",
+        cases,
+        &[&video],
+        |c| c.validate(),
+        &[],
+    );
 }
 
 /// 2 000 cases.
