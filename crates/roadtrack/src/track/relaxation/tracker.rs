@@ -477,7 +477,7 @@ mod tests {
 
     /// One car moving 15 px a frame along x with a jitter of ±2 px, 30 × 12 px boxes.
     fn jittery(frame: u32) -> Vec<Detection> {
-        let j = if frame % 2 == 0 { 2.0 } else { -2.0 };
+        let j = if frame.is_multiple_of(2) { 2.0 } else { -2.0 };
         vec![Detection {
             colour_rgb: Some([200.0, 30.0, 30.0]),
             size_px: Some((30.0, 12.0)),
