@@ -17,6 +17,10 @@
 //!   position in this frame and the detections ([`RelaxationTrackerConfig::rematch`]; the
 //!   cascade of SORT-style trackers). Off, every unpaired detection starts a track.
 //! - Choice: a detection no track claimed starts a new track; ids count up from 1.
+//! - Choice (options, off by default): `predict` places each track at its prediction for
+//!   the current frame instead, so the labels are prediction residuals; `position_alpha`
+//!   below 1 smooths each track's centre with an alpha-beta filter, and the state the next
+//!   frame is matched against is the filtered one.
 //!
 //! Note: with the paper's `A = 0.5`, a vehicle without neighbours within `R` loses its real
 //! labels to the no-match label (nothing reinforces them, eq. 19), so isolated vehicles
