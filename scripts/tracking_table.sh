@@ -2,7 +2,7 @@
 # Trackers on the same public detections (det/det.txt) of simulated scenes: norfair's IoU
 # tracker (scripts/norfair_peer.py) beside every roadtrack method as published
 # (--as-published) and with the shared life cycle, and relaxation with
-# configs/relaxation-intersection.toml. Class-agnostic HOTA, AssA, IDF1, MOTA, IDSW by
+# configs/relaxation-video.toml. Class-agnostic HOTA, AssA, IDF1, MOTA, IDSW by
 # `roadtrack evaluate` (TrackEval's definitions). Prints a markdown table (docs/TRACKING.md).
 #
 #   scripts/tracking_table.sh [FRAMES] [SEEDS...]      # default 300 frames, seeds 1 2 3
@@ -46,7 +46,7 @@ for sv in road:aerial intersection:oblique crossing:oblique; do
       row "$at | $method, shared life cycle" "$seq" "$work/t.txt"
     done
     "$rt" -q track "$seq" --method relaxation --detector file \
-      --config configs/relaxation-intersection.toml -o "$work/t.txt"
-    row "$at | relaxation, life cycle + relaxation-intersection.toml" "$seq" "$work/t.txt"
+      --config configs/relaxation-video.toml -o "$work/t.txt"
+    row "$at | relaxation, life cycle + relaxation-video.toml" "$seq" "$work/t.txt"
   done
 done

@@ -243,7 +243,14 @@ fn fuzz_relaxation_config() {
 }
 
 fn relaxation_tracker(cases: u32) {
-    fuzz_config::<RelaxationTrackerConfig>("relaxation_tracker", cases, &[], |c| c.validate(), &[]);
+    let video = committed("relaxation-video.toml");
+    fuzz_config::<RelaxationTrackerConfig>(
+        "relaxation_tracker",
+        cases,
+        &[&video],
+        |c| c.validate(),
+        &[],
+    );
 }
 
 /// 2 000 cases.

@@ -16,7 +16,8 @@ use std::path::PathBuf;
 /// `truth.csv`, as `roadtrack simulate --pairs` writes them; all problems of all folders
 /// are pooled. The correct-match rate is the fraction of frame-1 vehicles whose decision
 /// (partner or none) equals the truth. Methods: `a`, `b`, `c`, `d` (the paper's variants,
-/// also by name, e.g. `colour-bidirectional`), any of them with `+one-to-one`,
+/// also by name, e.g. `colour-bidirectional`), any of them with `+one-to-one` or
+/// `+assignment` (the decision rules),
 /// `nearest-neighbour` (`nn`) and `optimal-assignment` (`oa`, Hungarian on distance), both
 /// with the same gate D. Default: Table 1 = `a,b,c,d,nn,oa`. The other parameters come
 /// from the flags or `--config`. Writes
@@ -52,9 +53,12 @@ fn parse_method(s: &str) -> Result<ExperimentMethod, String> {
         }
         _ => {}
     }
-    let (v, decision) = match s.strip_suffix("+one-to-one") {
-        Some(v) => (v, DecisionRule::OneToOne),
-        None => (s, DecisionRule::Argmax),
+    let (v, decision) = if let Some(v) = s.strip_suffix("+one-to-one") {
+        (v, DecisionRule::OneToOne)
+    } else if let Some(v) = s.strip_suffix("+assignment") {
+        (v, DecisionRule::Assignment)
+    } else {
+        (s, DecisionRule::Argmax)
     };
     let variant = match v {
         "a" => RelaxationVariant::Unidirectional,
@@ -64,7 +68,7 @@ fn parse_method(s: &str) -> Result<ExperimentMethod, String> {
         other => other.parse::<RelaxationVariant>().map_err(|_| {
             format!(
                 "unknown method `{s}`; expected a, b, c, d (or a variant's name), \
-                 optionally with +one-to-one, nn or oa"
+                 optionally with +one-to-one or +assignment, nn or oa"
             )
         })?,
     };
@@ -139,6 +143,7 @@ mod tests {
             "unidirectional",
             "colour-unidirectional",
             "colour-bidirectional+one-to-one",
+            "colour-bidirectional+assignment",
             "nearest-neighbour",
             "optimal-assignment",
         ] {

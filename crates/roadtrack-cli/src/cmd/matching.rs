@@ -53,6 +53,22 @@ pub struct RelaxArgs {
     /// At most N neighbours per vehicle, the nearest within R, 1–4096 [default: 32].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=MAX_LABELS))]
     pub max_neighbours: Option<u32>,
+    /// Motion-compatible support (ours): a moving label takes support only from
+    /// neighbours within this many px of its line (its lane) [default: 0, off].
+    #[arg(long, value_name = "PX", value_parser = crate::flags::non_negative)]
+    pub neighbour_lateral_px: Option<f64>,
+    /// Colour likelihood start (ours): exp(−C/2σ²), σ in 8-bit levels [default: 0, the
+    /// paper's eqs. 9–11].
+    #[arg(long, value_name = "SIGMA", value_parser = crate::flags::non_negative)]
+    pub colour_sd: Option<f64>,
+    /// No-match handling (ours): labels no neighbour could support keep their start
+    /// instead of shrinking by A [default: false].
+    #[arg(long, value_name = "BOOL")]
+    pub neutral_without_neighbours: Option<bool>,
+    /// Displacement prior (ours): start × exp(−|λ|²/2σ²), no-match × exp(−2), σ px
+    /// [default: 0, off].
+    #[arg(long, value_name = "SIGMA", value_parser = crate::flags::non_negative)]
+    pub displacement_sd_px: Option<f64>,
 }
 
 /// [`roadtrack::limits::MAX_LABELS`] as a clap range bound.
@@ -78,6 +94,12 @@ impl RelaxArgs {
         set(&mut c.neighbour_radius_px, self.neighbour_radius_px);
         set(&mut c.gate_half_width_px, self.gate_half_width_px);
         set(&mut c.epsilon, self.epsilon);
+        set(&mut c.neighbour_lateral_px, self.neighbour_lateral_px);
+        set(&mut c.colour_sd, self.colour_sd);
+        if let Some(b) = self.neutral_without_neighbours {
+            c.neutral_without_neighbours = b;
+        }
+        set(&mut c.displacement_sd_px, self.displacement_sd_px);
         if let Some(n) = self.max_iterations {
             c.max_iterations = n;
         }

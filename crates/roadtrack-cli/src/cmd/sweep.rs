@@ -123,6 +123,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         match cfg.decision {
             DecisionRule::Argmax => "argmax",
             DecisionRule::OneToOne => "one-to-one",
+            DecisionRule::Assignment => "assignment",
         },
         t0.elapsed().as_secs_f64(),
         args.output.display()

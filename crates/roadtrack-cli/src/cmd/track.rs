@@ -417,8 +417,9 @@ fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Lik
 }
 
 /// `--config` for relaxation: a tracker config (`RelaxationTrackerConfig`, matcher under
-/// `[relaxation]`) or a bare matcher config (`RelaxationConfig`, as `match --config` takes,
-/// e.g. configs/relaxation-intersection.toml) with the tracker's defaults.
+/// `[relaxation]`, e.g. configs/relaxation-video.toml) or a bare matcher config
+/// (`RelaxationConfig`, as `match --config` takes, e.g. configs/relaxation-intersection.toml)
+/// with the tracker's defaults.
 fn relaxation_config(path: Option<&std::path::Path>) -> Result<RelaxationTrackerConfig> {
     let Some(p) = path else {
         return Ok(RelaxationTrackerConfig::default());

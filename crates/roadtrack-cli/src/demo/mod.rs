@@ -64,22 +64,22 @@ impl Default for DemoConfig {
     }
 }
 
-/// `configs/relaxation-intersection.toml`, built in.
-const RELAXATION_INTERSECTION: &str =
-    include_str!("../../../../configs/relaxation-intersection.toml");
+/// `configs/relaxation-video.toml`, built in.
+const RELAXATION_VIDEO: &str =
+    include_str!("../../../../configs/relaxation-video.toml");
 
 /// The demo's relaxation: the tracker's defaults with the matcher settings of
-/// `configs/relaxation-intersection.toml` (or that file's tracker settings, when it holds a
+/// `configs/relaxation-video.toml` (or that file's tracker settings, when it holds a
 /// whole `RelaxationTrackerConfig`).
 // Choice: the paper's settings are for frames 1.5 s apart; at the demo's 10 frames/s the
 // intersection settings score far higher (docs/EXPERIMENTS.md, "Demo").
 pub fn demo_relaxation() -> Result<RelaxationTrackerConfig> {
     use roadtrack::config::Validate;
-    let name = "configs/relaxation-intersection.toml";
-    let config = match toml::from_str::<RelaxationTrackerConfig>(RELAXATION_INTERSECTION) {
+    let name = "configs/relaxation-video.toml";
+    let config = match toml::from_str::<RelaxationTrackerConfig>(RELAXATION_VIDEO) {
         Ok(c) => c,
         Err(_) => RelaxationTrackerConfig {
-            relaxation: toml::from_str::<RelaxationConfig>(RELAXATION_INTERSECTION)
+            relaxation: toml::from_str::<RelaxationConfig>(RELAXATION_VIDEO)
                 .with_context(|| format!("reading the built-in {name}"))?,
             ..RelaxationTrackerConfig::default()
         },

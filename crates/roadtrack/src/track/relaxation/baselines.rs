@@ -61,6 +61,30 @@ pub fn optimal_assignment(
     gate_half_width_px: f64,
 ) -> Result<Vec<Option<usize>>> {
     let g = LabelGraph::new(&positions(frame1), &positions(frame2), gate_half_width_px)?;
+    let miss = gate_half_width_px;
+    assign_components(
+        &g,
+        &|e| dist(g.fwd_disp[e]),
+        &|_| miss,
+        &|_| miss,
+        "optimal assignment",
+    )
+}
+
+/// The minimum-cost one-to-one pairing on the labels of `g`: pair cost `pair_cost(e)` for
+/// forward label `e`, `miss1(i)` for frame-1 vehicle `i` left unpaired, `miss2(k)` for
+/// frame-2 vehicle `k`; solved exactly per connected component of the label graph.
+/// Returns each frame-1 vehicle's partner (indices of `g`).
+///
+/// # Errors
+/// A component larger than [`MAX_COMPONENT`] (`what` names the caller in the message).
+pub(crate) fn assign_components(
+    g: &LabelGraph,
+    pair_cost: &dyn Fn(usize) -> f64,
+    miss1: &dyn Fn(usize) -> f64,
+    miss2: &dyn Fn(usize) -> f64,
+    what: &str,
+) -> Result<Vec<Option<usize>>> {
     let (m, n) = (g.m, g.n);
     // Union-find over frame-1 vehicles 0..m and frame-2 vehicles m..m+n.
     let mut parent: Vec<usize> = (0..m + n).collect();
@@ -94,7 +118,6 @@ pub fn optimal_assignment(
         }
     }
     let mut partner = vec![None; m];
-    let miss = gate_half_width_px;
     for (rows, cols) in members.values() {
         if rows.is_empty() || cols.is_empty() {
             continue;
@@ -103,7 +126,7 @@ pub fn optimal_assignment(
         let size = a + b;
         if size > MAX_COMPONENT {
             return Err(crate::Error::Invalid(format!(
-                "optimal assignment: {size} vehicles are linked through their gates; the dense \
+                "{what}: {size} vehicles are linked through their gates; the dense \
                  baseline handles at most {MAX_COMPONENT} per component"
             )));
         }
@@ -113,12 +136,12 @@ pub fn optimal_assignment(
         for (r, &i) in rows.iter().enumerate() {
             for e in g.fwd_range(i) {
                 let c = col_of[&(g.fwd_target[e] as usize)];
-                cost[r * size + c] = dist(g.fwd_disp[e]);
+                cost[r * size + c] = pair_cost(e);
             }
-            cost[r * size + b + r] = miss; // a_i unpaired
+            cost[r * size + b + r] = miss1(i); // a_i unpaired
         }
         for c in 0..b {
-            cost[(a + c) * size + c] = miss; // b_k unpaired
+            cost[(a + c) * size + c] = miss2(cols[c]); // b_k unpaired
             for r in 0..a {
                 cost[(a + c) * size + b + r] = 0.0; // dummy–dummy
             }

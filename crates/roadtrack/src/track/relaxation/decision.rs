@@ -30,6 +30,16 @@ pub enum DecisionRule {
         value(help = "Pairs one-to-one, greedily by probability")
     )]
     OneToOne,
+    /// Pairs one-to-one by the most probable joint decision (ours, option): the pairing
+    /// that minimises `Σ −ln P_i(λ_ik) − ln Q_k(λ'_ki)` over pairs plus `−ln P_i(λ_p)` for
+    /// each unpaired frame-1 vehicle and `−ln Q_k(λ'_p)` for each unpaired frame-2 vehicle
+    /// (`Q` terms only in the bidirectional variants), solved exactly per connected
+    /// component of the gate graph.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Pairs one-to-one by the most probable joint decision (P and Q)")
+    )]
+    Assignment,
 }
 
 impl std::str::FromStr for DecisionRule {
@@ -39,10 +49,11 @@ impl std::str::FromStr for DecisionRule {
         match s {
             "argmax" => Ok(Self::Argmax),
             "one-to-one" => Ok(Self::OneToOne),
+            "assignment" => Ok(Self::Assignment),
             _ => Err(crate::Error::config(
                 "RelaxationConfig",
                 "decision",
-                format!("unknown decision rule `{s}`; expected argmax or one-to-one"),
+                format!("unknown decision rule `{s}`; expected argmax, one-to-one or assignment"),
             )),
         }
     }
@@ -196,6 +207,43 @@ fn one_to_one(
 }
 
 impl RelaxationProblem {
+    /// [`DecisionRule::Assignment`] on `sol`, in input order.
+    ///
+    /// Choice: probabilities are floored at `1e-300` before the logarithm, so a label the
+    /// relaxation drove to 0 stays allowed but costs about 690; a component too large for
+    /// the dense solver ([`super::baselines::MAX_COMPONENT`]) falls back to the one-to-one
+    /// rule for the whole problem.
+    fn joint_assignment(&self, sol: &Solution) -> (Vec<Option<usize>>, Vec<f64>) {
+        let g = &self.graph;
+        let nl = |v: f64| -v.max(1e-300).ln();
+        let q = sol.q.as_ref();
+        let pair =
+            |e: usize| nl(sol.p.real[e]) + q.map_or(0.0, |q| nl(q.real[g.fwd_twin[e] as usize]));
+        let miss1 = |i: usize| nl(sol.p.none[i]);
+        let miss2 = |k: usize| q.map_or(0.0, |q| nl(q.none[k]));
+        let Ok(inner) = super::baselines::assign_components(g, &pair, &miss1, &miss2, "decision")
+        else {
+            let (o1, o2) = (&self.order1[..], &self.order2[..]);
+            return one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2);
+        };
+        let m = g.m;
+        let mut partner = vec![None; m];
+        let mut prob = vec![0.0; m];
+        for (i, k) in inner.into_iter().enumerate() {
+            let own = self.order1[i] as usize;
+            prob[own] = match k {
+                Some(k) => {
+                    partner[own] = Some(self.order2[k] as usize);
+                    g.fwd_range(i)
+                        .find(|&e| g.fwd_target[e] as usize == k)
+                        .map_or(0.0, |e| sol.p.real[e])
+                }
+                None => sol.p.none[i],
+            };
+        }
+        (partner, prob)
+    }
+
     /// The decision on `sol` (argmax, or one-to-one).
     pub fn decide(&self, sol: &Solution, rule: DecisionRule) -> Matching {
         let g = &self.graph;
@@ -203,6 +251,7 @@ impl RelaxationProblem {
         let (partner, probability) = match rule {
             DecisionRule::Argmax => argmax_all(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
             DecisionRule::OneToOne => one_to_one(&g.fwd_start, &g.fwd_target, &sol.p, o1, o2),
+            DecisionRule::Assignment => self.joint_assignment(sol),
         };
         let (backward_partner, backward_probability) = match &sol.q {
             Some(q) => {
@@ -264,6 +313,54 @@ mod tests {
         let (o, pr) = one_to_one(&start, &target, &p, &id, &id);
         assert_eq!(o, vec![Some(0), Some(1)]);
         assert_eq!(pr, vec![0.7, 0.3]);
+    }
+
+    #[test]
+    fn joint_assignment_uses_the_backward_side_where_the_greedy_rule_cannot() -> Result<()> {
+        // a_0 (0,0), a_1 (30,0); b_0 (10,0), b_1 (40,0): every pair is a label.
+        // P: a_0 → b_0 0.6, b_1 0.35, none 0.05;  a_1 → b_0 0.55, b_1 0, none 0.45.
+        // Q: b_0 → a_0 0.05, a_1 0.9, none 0.05;  b_1 → a_0 0.9, a_1 0.05, none 0.05.
+        // One-to-one (P only): a_0–b_0 (0.6 first), a_1 none (b_1's 0 < 0.45).
+        // Joint: {a_0–b_0, a_1 none, b_1 none} costs −ln .6 − ln .45 − ln .05 − ln .05
+        //   = 0.51 + 0.80 + 3.00 + 3.00 = 7.31; {a_0–b_1, a_1–b_0} costs −ln .35 − ln .55
+        //   − ln .9 − ln .9 = 1.05 + 0.60 + 0.11 + 0.11 = 1.86: the crossed pairs.
+        let f1 = [det(1, 0.0, 0.0, [0.0; 3]), det(2, 30.0, 0.0, [0.0; 3])];
+        let f2 = [det(5, 10.0, 0.0, [0.0; 3]), det(6, 40.0, 0.0, [0.0; 3])];
+        let cfg = RelaxationConfig {
+            variant: RelaxationVariant::Bidirectional,
+            ..Default::default()
+        };
+        let prob = RelaxationProblem::new(&f1, &f2, &cfg)?;
+        assert_eq!(
+            (prob.order1.clone(), prob.order2.clone()),
+            (vec![0, 1], vec![0, 1])
+        );
+        assert_eq!(prob.graph.fwd_target, vec![0, 1, 0, 1]);
+        let sol = Solution {
+            p: Probabilities {
+                real: vec![0.6, 0.35, 0.55, 0.0],
+                none: vec![0.05, 0.45],
+            },
+            q: Some(Probabilities {
+                real: vec![0.05, 0.9, 0.9, 0.05],
+                none: vec![0.05, 0.05],
+            }),
+            iterations: 0,
+            converged: true,
+            last_change: 0.0,
+        };
+        assert_eq!(
+            prob.decide(&sol, DecisionRule::OneToOne).partner,
+            vec![Some(0), None]
+        );
+        let joint = prob.decide(&sol, DecisionRule::Assignment);
+        assert_eq!(joint.partner, vec![Some(1), Some(0)]);
+        assert_eq!(joint.probability, vec![0.35, 0.55]);
+        assert_eq!(
+            "assignment".parse::<DecisionRule>()?,
+            DecisionRule::Assignment
+        );
+        Ok(())
     }
 
     #[test]

@@ -170,6 +170,9 @@ impl fmt::Display for ExperimentMethod {
         match self {
             ExperimentMethod::Relaxation(v, DecisionRule::Argmax) => write!(f, "{v}"),
             ExperimentMethod::Relaxation(v, DecisionRule::OneToOne) => write!(f, "{v}+one-to-one"),
+            ExperimentMethod::Relaxation(v, DecisionRule::Assignment) => {
+                write!(f, "{v}+assignment")
+            }
             ExperimentMethod::NearestNeighbour => f.write_str("nearest-neighbour"),
             ExperimentMethod::OptimalAssignment => f.write_str("optimal-assignment"),
         }

@@ -45,6 +45,30 @@ pub fn colour_start_row(costs: &[f64], out: &mut [f64]) -> f64 {
     hat_none / total
 }
 
+/// Colour likelihood start (ours, `RelaxationConfig::colour_sd` = `sigma` > 0) for one
+/// vehicle: real label `λ` ∝ `exp(−C(λ) / 2σ²)`, no-match label ∝ `exp(−6)` (the weight of
+/// a candidate `2σ` off in each channel: `C = 12σ²`); returns the no-match probability.
+/// Computed relative to the smallest cost, so no weight underflows to 0 for all labels.
+pub fn colour_likelihood_row(costs: &[f64], sigma: f64, out: &mut [f64]) -> f64 {
+    debug_assert_eq!(costs.len(), out.len(), "one output per label");
+    if costs.is_empty() {
+        return 1.0;
+    }
+    let k = 1.0 / (2.0 * sigma * sigma);
+    let none_cost = 12.0 * sigma * sigma;
+    let lo = costs.iter().copied().fold(none_cost, f64::min);
+    let none_w = (-(none_cost - lo) * k).exp();
+    let mut total = none_w;
+    for (o, &c) in out.iter_mut().zip(costs) {
+        *o = (-(c - lo) * k).exp();
+        total += *o;
+    }
+    for o in out.iter_mut() {
+        *o /= total;
+    }
+    none_w / total
+}
+
 /// Uniform start for one vehicle with `out.len()` real labels: `1 / (|L_i|)` each, the
 /// no-match label included; returns the no-match probability.
 pub fn uniform_start_row(out: &mut [f64]) -> f64 {
@@ -53,15 +77,46 @@ pub fn uniform_start_row(out: &mut [f64]) -> f64 {
     u
 }
 
+/// The displacement prior (ours, `RelaxationConfig::displacement_sd_px`): multiplies the
+/// start of each real label (rows `start`, displacements `disp`) by `exp(−|λ|² / 2σ²)` and
+/// each no-match label by `exp(−2)`, then renormalises every row.
+///
+/// Choice: the no-match label weighs as much as a label `2σ` long: a vehicle whose only
+/// candidates lie far beyond the expected motion starts closer to "no partner". A row
+/// whose weights all vanish keeps its start.
+pub fn displacement_prior(start: &[u32], disp: &[[f64; 2]], sigma: f64, p: &mut Probabilities) {
+    let none_w = (-2.0f64).exp();
+    let k = 1.0 / (2.0 * sigma * sigma);
+    for i in 0..p.none.len() {
+        let r = start[i] as usize..start[i + 1] as usize;
+        let mut sum = p.none[i] * none_w;
+        let mut w = Vec::with_capacity(r.len());
+        for e in r.clone() {
+            let d = disp[e];
+            let v = p.real[e] * (-(d[0] * d[0] + d[1] * d[1]) * k).exp();
+            w.push(v);
+            sum += v;
+        }
+        if sum > 0.0 && sum.is_finite() {
+            for (e, v) in r.zip(w) {
+                p.real[e] = v / sum;
+            }
+            p.none[i] = p.none[i] * none_w / sum;
+        }
+    }
+}
+
 /// Own and other frame's mean colours.
 pub(crate) type ColourPair<'a> = (&'a [[f64; 3]], &'a [[f64; 3]]);
 
 /// Initial probabilities of one direction: rows `start`, targets `target` (indices into
-/// `other`), own colours `own`. `colours` is `None` for the uniform start.
+/// `other`), own colours `own`. `colours` is `None` for the uniform start; `colour_sd`
+/// above 0 takes [`colour_likelihood_row`] instead of eqs. 9–11.
 pub(crate) fn initial_probabilities(
     start: &[u32],
     target: &[u32],
     colours: Option<ColourPair<'_>>,
+    colour_sd: f64,
 ) -> Probabilities {
     let rows = start.len().saturating_sub(1);
     let mut real = vec![0.0; target.len()];
@@ -78,7 +133,11 @@ pub(crate) fn initial_probabilities(
                         .iter()
                         .map(|&k| colour_cost(own[i], other[k as usize])),
                 );
-                colour_start_row(&costs, &mut real[r])
+                if colour_sd > 0.0 {
+                    colour_likelihood_row(&costs, colour_sd, &mut real[r])
+                } else {
+                    colour_start_row(&costs, &mut real[r])
+                }
             }
         };
     }
@@ -143,5 +202,45 @@ mod tests {
         let none = colour_start_row(&[0.0; 3], &mut out);
         assert_eq!(none, 0.0);
         assert!(out.iter().all(|&p| close(p, 1.0 / 3.0)));
+    }
+
+    #[test]
+    fn colour_likelihood_start_matches_a_hand_computation() {
+        // σ = 10: weights exp(−C/200) relative to the smallest cost (0).
+        //   C = 0 → 1;  C = 200 → e⁻¹;  λ_p: C = 12σ² = 1200 → e⁻⁶.
+        let mut out = [0.0; 2];
+        let none = colour_likelihood_row(&[0.0, 200.0], 10.0, &mut out);
+        let total = 1.0 + (-1.0f64).exp() + (-6.0f64).exp();
+        assert!(close(out[0], 1.0 / total) && close(out[1], (-1.0f64).exp() / total));
+        assert!(close(none, (-6.0f64).exp() / total));
+        // Far costs: relative to the smallest (λ_p's 1200 here), so λ_p keeps weight 1
+        // and nothing is 0/0.
+        let none = colour_likelihood_row(&[1e6, 2e6], 10.0, &mut out);
+        assert!(
+            none == 1.0 && out.iter().all(|p| (0.0..1e-300).contains(p)),
+            "{out:?}"
+        );
+        // Unlike eqs. 9–11 it separates one close colour among many strangers.
+        let costs = [30.0, 3000.0, 3000.0, 3000.0, 3000.0, 3000.0];
+        let mut paper = [0.0; 6];
+        colour_start_row(&costs, &mut paper);
+        let mut ours = [0.0; 6];
+        colour_likelihood_row(&costs, 10.0, &mut ours);
+        assert!(paper[0] < 0.2 && ours[0] > 0.99, "{paper:?} {ours:?}");
+    }
+
+    #[test]
+    fn displacement_prior_favours_short_labels_and_renormalises() {
+        // One vehicle, labels (0, 0) and (20, 0), σ = 10, uniform start 1/3 each:
+        //   weights 1, e⁻², λ_p e⁻²  →  1/(1 + 2e⁻²), e⁻²/(1 + 2e⁻²), e⁻²/(1 + 2e⁻²).
+        let mut p = Probabilities {
+            real: vec![1.0 / 3.0; 2],
+            none: vec![1.0 / 3.0],
+        };
+        displacement_prior(&[0, 2], &[[0.0, 0.0], [20.0, 0.0]], 10.0, &mut p);
+        let e2 = (-2.0f64).exp();
+        let t = 1.0 + 2.0 * e2;
+        assert!(close(p.real[0], 1.0 / t) && close(p.real[1], e2 / t));
+        assert!(close(p.none[0], e2 / t));
     }
 }

@@ -215,6 +215,31 @@ pub struct RelaxationConfig {
     /// [`DEFAULT_MAX_NEIGHBOURS`](crate::limits::DEFAULT_MAX_NEIGHBOURS); at most
     /// [`MAX_LABELS`](crate::limits::MAX_LABELS).
     pub max_neighbours: usize,
+    /// Motion-compatible support (ours, not the paper's): when positive, a label longer
+    /// than `T` (a moving vehicle) takes support (eq. 13) only from neighbours within this
+    /// many px of the line along the label (its lane, ahead or behind), so an opposite lane
+    /// or a crossing arm no longer supports it ([`support::lateral_compatible`]); labels
+    /// within `T` of zero (queued vehicles) keep every neighbour. Default 0: off (eq. 16).
+    pub neighbour_lateral_px: f64,
+    /// Colour likelihood start (ours, not the paper's): when positive, the start is
+    /// `exp(−C(λ) / 2σ²)` with the colour cost `C` of eq. 7 and this `σ` (sd of one
+    /// channel's difference between two sightings of a vehicle, 8-bit levels), and the
+    /// no-match label weighs as a candidate `2σ` off in every channel. Default 0: the
+    /// paper's eqs. 9–11 (nearly flat with many candidates).
+    pub colour_sd: f64,
+    /// Displacement prior (ours, not the paper's): when positive, the start of every label
+    /// is multiplied by `exp(−|λ|² / 2σ²)` with this `σ` px, and the no-match label by
+    /// `exp(−2)` (as plausible as a label `2σ` long), then renormalised. Two frames: a
+    /// prior for slow traffic; in the tracker with `predict = true` the displacement is the
+    /// residual from each track's prediction. Default 0: off (the paper's start).
+    pub displacement_sd_px: f64,
+    /// No-match handling (ours, not the paper's): when true, a label whose pair no
+    /// neighbour could support, in either frame (no neighbour within `R`, in its lane with
+    /// `neighbour_lateral_px`, has a label similar to it, eq. 15), is multiplied by 1 like
+    /// `λ_p` instead of `A`: a vehicle moving unlike all its neighbours keeps its start,
+    /// while `A < 1` still weakens labels that neighbours could support and do not (a
+    /// vehicle whose partner is missing). Default false (eqs. 19–20 for every label).
+    pub neutral_without_neighbours: bool,
 }
 
 impl Default for RelaxationConfig {
@@ -232,6 +257,10 @@ impl Default for RelaxationConfig {
             decision: DecisionRule::Argmax,
             max_labels: crate::limits::DEFAULT_MAX_LABELS,
             max_neighbours: crate::limits::DEFAULT_MAX_NEIGHBOURS,
+            neighbour_lateral_px: 0.0,
+            colour_sd: 0.0,
+            neutral_without_neighbours: false,
+            displacement_sd_px: 0.0,
         }
     }
 }
@@ -257,6 +286,9 @@ impl RelaxationConfig {
             ("neighbour_radius_px", self.neighbour_radius_px),
             ("gate_half_width_px", self.gate_half_width_px),
             ("epsilon", self.epsilon),
+            ("neighbour_lateral_px", self.neighbour_lateral_px),
+            ("colour_sd", self.colour_sd),
+            ("displacement_sd_px", self.displacement_sd_px),
         ];
         for (name, v) in fields {
             if !v.is_finite() || v < 0.0 {

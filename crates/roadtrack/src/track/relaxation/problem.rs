@@ -3,7 +3,7 @@
 //! ([`super::decision`]) for any weights `A, B, C`.
 
 use super::grid::PointGrid;
-use super::initial::initial_probabilities;
+use super::initial::{displacement_prior, initial_probabilities};
 use super::labels::LabelGraph;
 use super::probabilities::{Probabilities, Solution};
 use super::support::SupportLists;
@@ -38,6 +38,8 @@ pub struct RelaxationProblem {
     pub(super) bwd_support: Option<SupportLists>,
     pub(super) initial_p: Probabilities,
     pub(super) initial_q: Option<Probabilities>,
+    /// `RelaxationConfig::neutral_without_neighbours`.
+    pub(super) neutral_without_neighbours: bool,
 }
 
 impl RelaxationProblem {
@@ -64,16 +66,24 @@ impl RelaxationProblem {
         let q: Vec<Point> = frame2.iter().map(|d| d.pos_px).collect();
         let graph = LabelGraph::nearest(&p, &q, cfg.gate_half_width_px, cfg.max_labels)?;
         let (r, t) = (cfg.neighbour_radius_px, cfg.similar_displacement_px);
-        let nb = cfg.max_neighbours;
+        let (nb, rho) = (cfg.max_neighbours, cfg.neighbour_lateral_px);
         let bidirectional = cfg.variant.bidirectional();
         // The two directions are independent: built side by side (each is also parallel
         // over vehicle blocks, but its final concatenation is serial).
         let (fwd_support, bwd_support) = rayon::join(
-            || SupportLists::build_nearest(&p, &graph.fwd_start, &graph.fwd_disp, r, t, nb),
+            || SupportLists::build_compatible(&p, &graph.fwd_start, &graph.fwd_disp, r, t, rho, nb),
             || {
                 bidirectional
                     .then(|| {
-                        SupportLists::build_nearest(&q, &graph.bwd_start, &graph.bwd_disp, r, t, nb)
+                        SupportLists::build_compatible(
+                            &q,
+                            &graph.bwd_start,
+                            &graph.bwd_disp,
+                            r,
+                            t,
+                            rho,
+                            nb,
+                        )
                     })
                     .transpose()
             },
@@ -94,6 +104,7 @@ impl RelaxationProblem {
                     &graph.fwd_start,
                     &graph.fwd_target,
                     colour.then_some((&c1[..], &c2[..])),
+                    cfg.colour_sd,
                 )
             },
             || {
@@ -102,10 +113,19 @@ impl RelaxationProblem {
                         &graph.bwd_start,
                         &graph.bwd_target,
                         colour.then_some((&c2[..], &c1[..])),
+                        cfg.colour_sd,
                     )
                 })
             },
         );
+        let (mut initial_p, mut initial_q) = (initial_p, initial_q);
+        if cfg.displacement_sd_px > 0.0 {
+            let s = cfg.displacement_sd_px;
+            displacement_prior(&graph.fwd_start, &graph.fwd_disp, s, &mut initial_p);
+            if let Some(q) = &mut initial_q {
+                displacement_prior(&graph.bwd_start, &graph.bwd_disp, s, q);
+            }
+        }
         Ok(Self {
             graph,
             ids1,
@@ -116,6 +136,7 @@ impl RelaxationProblem {
             bwd_support,
             initial_p,
             initial_q,
+            neutral_without_neighbours: cfg.neutral_without_neighbours,
         })
     }
 

@@ -34,6 +34,25 @@ pub fn similar(a: [f64; 2], b: [f64; 2], t: f64) -> bool {
     dx * dx + dy * dy <= t * t
 }
 
+/// Motion-compatible neighbourhood (ours, `RelaxationConfig::neighbour_lateral_px`):
+/// whether a neighbour at `offset` (its position minus the vehicle's) may support the
+/// vehicle's label `d`. A label longer than `t` (a moving vehicle) takes support only
+/// from neighbours within `lateral` px of the line through the vehicle along `d` (the
+/// same lane, ahead or behind); a label within `t` of zero (a stopped vehicle) from any
+/// neighbour.
+///
+/// Choice: at an intersection a neighbour in the opposite lane or on a crossing arm moves
+/// otherwise; the lane it drives in is the cheapest evidence of its flow that two frames
+/// give, and queues (stopped) need no direction.
+pub fn lateral_compatible(d: [f64; 2], offset: [f64; 2], t: f64, lateral: f64) -> bool {
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    if len2 <= t * t {
+        return true;
+    }
+    let cross = d[0] * offset[1] - d[1] * offset[0];
+    cross * cross <= lateral * lateral * len2
+}
+
 /// For every label, the labels of neighbouring vehicles similar to it (compressed rows).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SupportLists {
@@ -51,6 +70,8 @@ struct Scratch {
     dx: Vec<f64>,
     dy: Vec<f64>,
     label: Vec<u32>,
+    /// With a lateral limit: each label's owner minus the vehicle, px.
+    offset: Vec<[f64; 2]>,
 }
 
 impl SupportLists {
@@ -92,6 +113,32 @@ impl SupportLists {
         disp: &[[f64; 2]],
         radius_px: f64,
         similar_px: f64,
+        max_neighbours: usize,
+    ) -> Result<Self> {
+        Self::build_compatible(
+            owner,
+            start,
+            disp,
+            radius_px,
+            similar_px,
+            0.0,
+            max_neighbours,
+        )
+    }
+
+    /// [`SupportLists::build_nearest`] with the motion-compatible neighbourhood of
+    /// [`lateral_compatible`] (`lateral_px`); with `lateral_px = 0` (off) exactly
+    /// [`SupportLists::build_nearest`].
+    ///
+    /// # Errors
+    /// As [`SupportLists::build`].
+    pub fn build_compatible(
+        owner: &[Point],
+        start: &[u32],
+        disp: &[[f64; 2]],
+        radius_px: f64,
+        similar_px: f64,
+        lateral_px: f64,
         max_neighbours: usize,
     ) -> Result<Self> {
         let grid = PointGrid::new(owner.iter().copied(), radius_px.max(1.0));
@@ -137,6 +184,7 @@ impl SupportLists {
                 s.dx.clear();
                 s.dy.clear();
                 s.label.clear();
+                s.offset.clear();
                 for &j in &s.neighbours {
                     let j = j as usize;
                     for e in start[j]..start[j + 1] {
@@ -144,15 +192,30 @@ impl SupportLists {
                         s.dx.push(d[0]);
                         s.dy.push(d[1]);
                         s.label.push(e);
+                        if lateral_px > 0.0 {
+                            s.offset.push([owner[j].x - a.x, owner[j].y - a.y]);
+                        }
                     }
                 }
                 for d in &disp[own] {
                     let before = items.len();
-                    for ((&x, &y), &e2) in s.dx.iter().zip(&s.dy).zip(&s.label) {
-                        // Eq. 15, the same arithmetic as [`similar`].
-                        let (ex, ey) = (d[0] - x, d[1] - y);
-                        if ex * ex + ey * ey <= t2 {
-                            items.push(e2);
+                    if lateral_px > 0.0 {
+                        let it = s.dx.iter().zip(&s.dy).zip(&s.label).zip(&s.offset);
+                        for (((&x, &y), &e2), &off) in it {
+                            let (ex, ey) = (d[0] - x, d[1] - y);
+                            if ex * ex + ey * ey <= t2
+                                && lateral_compatible(*d, off, similar_px, lateral_px)
+                            {
+                                items.push(e2);
+                            }
+                        }
+                    } else {
+                        for ((&x, &y), &e2) in s.dx.iter().zip(&s.dy).zip(&s.label) {
+                            // Eq. 15, the same arithmetic as [`similar`].
+                            let (ex, ey) = (d[0] - x, d[1] - y);
+                            if ex * ex + ey * ey <= t2 {
+                                items.push(e2);
+                            }
                         }
                     }
                     counts.push((items.len() - before) as u32);
@@ -318,6 +381,46 @@ mod tests {
         assert!(capped.n_entries() > 0);
         let same = SupportLists::build_nearest(&p, &g.fwd_start, &g.fwd_disp, 200.0, 100.0, 299)?;
         assert_eq!(same, all);
+        Ok(())
+    }
+
+    #[test]
+    fn a_moving_label_takes_support_from_its_lane_only() -> Result<()> {
+        // a_0 (0,0) and a_1 (60,0) in one lane, a_2 (30,12) in the next lane; every
+        // vehicle moves (20,0): b_k = a_k + (20,0). T = 5, lateral 4 px.
+        let p = [
+            Point::new(0.0, 0.0),
+            Point::new(60.0, 0.0),
+            Point::new(30.0, 12.0),
+        ];
+        let q: Vec<Point> = p.iter().map(|a| Point::new(a.x + 20.0, a.y)).collect();
+        let g = LabelGraph::new(&p, &q, 25.0)?;
+        // a_0's labels: b_0 (20,0) only (b_2 is (50,12): outside D = 25).
+        assert_eq!(g.fwd_range(0).len(), 1);
+        let all = SupportLists::build(&p, &g.fwd_start, &g.fwd_disp, 200.0, 5.0)?;
+        let lane =
+            SupportLists::build_compatible(&p, &g.fwd_start, &g.fwd_disp, 200.0, 5.0, 4.0, 8)?;
+        let supporters = |l: &SupportLists, e: usize| -> Vec<u32> {
+            let r = l.start[e] as usize..l.start[e + 1] as usize;
+            l.items[r]
+                .iter()
+                .map(|&x| g.fwd_target[x as usize])
+                .collect()
+        };
+        // Eq. 16: a_1 and a_2 both support a_0's (20,0); in its lane only a_1 does.
+        assert_eq!(supporters(&all, 0), vec![1, 2]);
+        assert_eq!(supporters(&lane, 0), vec![1]);
+        // A label within T of zero (a queued vehicle) keeps every neighbour.
+        assert!(lateral_compatible([3.0, 0.0], [0.0, 50.0], 5.0, 4.0));
+        assert!(!lateral_compatible([30.0, 0.0], [0.0, 50.0], 5.0, 4.0));
+        assert!(lateral_compatible([30.0, 0.0], [-80.0, 3.9], 5.0, 4.0));
+        // Lateral 0 is off: exactly the paper's lists.
+        let off =
+            SupportLists::build_compatible(&p, &g.fwd_start, &g.fwd_disp, 200.0, 5.0, 0.0, 8)?;
+        assert_eq!(
+            off,
+            SupportLists::build_nearest(&p, &g.fwd_start, &g.fwd_disp, 200.0, 5.0, 8)?
+        );
         Ok(())
     }
 

@@ -84,29 +84,41 @@ impl RelaxationProblem {
                 );
                 let (p_hat, q_hat) = (&buf.p_hat, &buf.q_hat);
                 let p_new = &mut buf.p_new;
+                let (wf, wb) = self.witnesses();
                 let (c1, c2) = rayon::join(
                     || {
                         update_direction(
                             &g.fwd_start,
                             &g.fwd_twin,
                             &sol.p,
-                            p_hat,
-                            Some(q_hat),
+                            (p_hat, wf),
+                            Some((q_hat, wb)),
                             w,
                             p_new,
                         )
                     },
-                    || update_direction(&g.bwd_start, &g.bwd_twin, q, q_hat, Some(p_hat), w, q_new),
+                    || {
+                        update_direction(
+                            &g.bwd_start,
+                            &g.bwd_twin,
+                            q,
+                            (q_hat, wb),
+                            Some((p_hat, wf)),
+                            w,
+                            q_new,
+                        )
+                    },
                 );
                 c1.max(c2)
             }
             _ => {
                 self.fwd_support.sums(&sol.p.real, &mut buf.p_hat);
+                let (wf, _) = self.witnesses();
                 update_direction(
                     &g.fwd_start,
                     &g.fwd_twin,
                     &sol.p,
-                    &buf.p_hat,
+                    (&buf.p_hat, wf),
                     None,
                     w,
                     &mut buf.p_new,
@@ -123,8 +135,31 @@ impl RelaxationProblem {
     }
 }
 
+impl RelaxationProblem {
+    /// The support-list row starts of each direction when `neutral_without_neighbours` is
+    /// on: a label whose row is empty has no possible supporter.
+    fn witnesses(&self) -> (Option<&[u32]>, Option<&[u32]>) {
+        if !self.neutral_without_neighbours {
+            return (None, None);
+        }
+        (
+            Some(&self.fwd_support.start[..]),
+            self.bwd_support.as_ref().map(|b| &b.start[..]),
+        )
+    }
+}
+
+/// A direction's supports and, with `neutral_without_neighbours`, its support-list row
+/// starts (an empty row: no neighbour label similar to this one).
+type Side<'a> = (&'a [f64], Option<&'a [u32]>);
+
 /// Eqs. 17–19 (or 20) for every vehicle of one direction: reads `old`, the supports, and
 /// writes `out`; returns the largest absolute change.
+///
+/// With support-list rows (`RelaxationConfig::neutral_without_neighbours`, ours): a label
+/// whose pair has no possible supporter on either side (no neighbour has a similar label,
+/// eq. 15) is multiplied by 1, as `λ_p` (eq. 18), instead of `A`: no evidence neither
+/// reinforces nor weakens it.
 ///
 /// Choice: when every reinforced probability of a vehicle is 0 (possible with `A = 0` and
 /// no support, a corner of the paper's sweep), eq. 17 would divide by zero; the vehicle
@@ -133,11 +168,14 @@ fn update_direction(
     start: &[u32],
     twin: &[u32],
     old: &Probabilities,
-    own_support: &[f64],
-    other_support: Option<&[f64]>,
+    own: Side<'_>,
+    other: Option<Side<'_>>,
     w: &UpdateWeights,
     out: &mut Probabilities,
 ) -> f64 {
+    let (own_support, own_witness) = own;
+    let other_support = other.map(|o| o.0);
+    let other_witness = other.and_then(|o| o.1);
     let rows = old.none.len();
     let vehicle = |i: usize, real: &mut [f64], none: &mut f64| -> f64 {
         let r = start[i] as usize..start[i + 1] as usize;
@@ -148,7 +186,15 @@ fn update_direction(
                 Some(s) => w.backward_support_weight * s[twin[e] as usize],
                 None => 0.0,
             };
-            let v = old.real[e] * (w.own_weight + w.forward_support_weight * own_support[e] + back);
+            let empty = |st: &[u32], x: usize| st[x] == st[x + 1];
+            let unwitnessed = own_witness.is_some_and(|st| empty(st, e))
+                && other_witness.is_none_or(|st| empty(st, twin[e] as usize));
+            let factor = if unwitnessed {
+                1.0
+            } else {
+                w.own_weight + w.forward_support_weight * own_support[e] + back
+            };
+            let v = old.real[e] * factor;
             real[e - base] = v;
             sum += v;
         }
@@ -300,6 +346,45 @@ mod tests {
         assert_eq!(sol.p.real, vec![1.0]);
         assert_eq!(sol.p.none, vec![0.0]);
         assert!(sol.converged && sol.iterations == 1);
+        Ok(())
+    }
+
+    #[test]
+    fn a_vehicle_no_neighbour_could_support_keeps_its_start_when_neutral() -> Result<()> {
+        // One vehicle, one candidate of a close colour 8 px away, nobody else: eq. 19
+        // multiplies the real label by A = 0.5 each iteration and λ_p wins (the paper);
+        // with `neutral_without_neighbours` the label is multiplied by 1, like λ_p, and
+        // keeps its start.
+        let f1 = [det(1, 0.0, 0.0, [100.0; 3])];
+        let f2 = [det(9, 8.0, 0.0, [104.0; 3])];
+        let paper = RelaxationConfig::default();
+        let neutral = RelaxationConfig {
+            neutral_without_neighbours: true,
+            ..Default::default()
+        };
+        assert_eq!(match_vehicles(&f1, &f2, &paper)?.partner, vec![None]);
+        let prob = RelaxationProblem::new(&f1, &f2, &neutral)?;
+        let sol = prob.solve(&neutral.weights(), neutral.epsilon, neutral.max_iterations);
+        assert_eq!(sol.p, prob.initial().p);
+        assert_eq!(match_vehicles(&f1, &f2, &neutral)?.partner, vec![Some(0)]);
+        // Where every label has a possible supporter (T = 1 000 px: every neighbour label
+        // is similar) the option changes nothing: the paper's iterations, bit for bit.
+        let (f1, f2, _) = super::super::scale::generate_road_network_pair(
+            60,
+            &super::super::scale::NetworkConfig::default(),
+            3,
+        )?;
+        let wide = |neutral_without_neighbours| RelaxationConfig {
+            similar_displacement_px: 1000.0,
+            neighbour_radius_px: 5000.0,
+            neutral_without_neighbours,
+            ..Default::default()
+        };
+        let solve = |c: &RelaxationConfig| -> Result<Solution> {
+            let prob = RelaxationProblem::new(&f1, &f2, c)?;
+            Ok(prob.solve(&c.weights(), c.epsilon, c.max_iterations))
+        };
+        assert_eq!(solve(&wide(true))?, solve(&wide(false))?);
         Ok(())
     }
 
