@@ -65,8 +65,7 @@ impl Default for DemoConfig {
 }
 
 /// `configs/relaxation-video.toml`, built in.
-const RELAXATION_VIDEO: &str =
-    include_str!("../../../../configs/relaxation-video.toml");
+const RELAXATION_VIDEO: &str = include_str!("../../../../configs/relaxation-video.toml");
 
 /// The demo's relaxation: the tracker's defaults with the matcher settings of
 /// `configs/relaxation-video.toml` (or that file's tracker settings, when it holds a
