@@ -33,10 +33,11 @@ pub fn box_cover(grid: &BlockGrid, b: &BBox) -> Vec<usize> {
     }
     if out.is_empty() {
         let c = b.centre();
-        if c.x >= 0.0 && c.y >= 0.0 {
-            if let Some((bx, by)) = grid.blocks_from_px(c.x as u32, c.y as u32) {
-                out.push(grid.index(bx, by));
-            }
+        if c.x >= 0.0
+            && c.y >= 0.0
+            && let Some((bx, by)) = grid.blocks_from_px(c.x as u32, c.y as u32)
+        {
+            out.push(grid.index(bx, by));
         }
     }
     out
