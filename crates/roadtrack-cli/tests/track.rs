@@ -90,6 +90,69 @@ fn mrf_tracks_are_deterministic_for_a_seed() {
     assert_eq!(a, run("b.txt"));
 }
 
+/// Frame and box `x,y,w,h` of every row of a MOT file.
+fn mot_boxes(path: &Path) -> Vec<(u32, [f64; 4])> {
+    std::fs::read_to_string(path)
+        .expect("read")
+        .lines()
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().expect("number")).collect();
+            (f[0] as u32, [f[2], f[3], f[4], f[5]])
+        })
+        .collect()
+}
+
+/// `track --method mrf --detector file` starts its objects from the public detections and
+/// reports them at the detections' boxes (without the smoothing of small boxes; the life
+/// cycle keeps their centres); with `--as-published` it tracks from pixels alone (boxes on
+/// the 8-px block grid).
+#[test]
+fn mrf_reports_objects_at_the_detectors_boxes_unless_as_published() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 30);
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let o = bin()
+            .arg("track")
+            .arg(&seq)
+            .args(["--method", "mrf", "--detector", "file", "-q", "-o"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        mot_boxes(&out)
+    };
+    let centre = |b: &[f64; 4]| (b[0] + b[2] / 2.0, b[1] + b[3] / 2.0);
+    let dets = mot_boxes(&seq.join("det/det.txt"));
+    let published = run("published.txt", &["--as-published"]);
+    assert!(!published.is_empty());
+    assert!(
+        published
+            .iter()
+            .all(|(_, b)| b.iter().all(|v| v % 8.0 == 0.0))
+    );
+    let raw = dir.path().join("raw.toml");
+    std::fs::write(&raw, "box_smoothing_px = 0\n").expect("write");
+    let default = run("default.txt", &["--config", raw.to_str().expect("utf-8")]);
+    let at_a_detection = default
+        .iter()
+        .filter(|(f, b)| {
+            let (x, y) = centre(b);
+            dets.iter().any(|(g, d)| {
+                let (u, v) = centre(d);
+                g == f && (x - u).abs() < 0.01 && (y - v).abs() < 0.01
+            })
+        })
+        .count();
+    assert!(
+        default.len() > 30 && at_a_detection * 10 >= default.len() * 8,
+        "{at_a_detection} of {} boxes are at a detection",
+        default.len()
+    );
+}
+
 #[test]
 fn geojson_without_calibration_is_a_usage_error() {
     let o = bin()

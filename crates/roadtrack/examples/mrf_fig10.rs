@@ -148,11 +148,22 @@ fn tolerance() -> u32 {
         .unwrap_or(MrfConfig::default().local_vector_tolerance_px)
 }
 
+/// `smoothness_weight` (`f`) from `$MRF_SMOOTHNESS_WEIGHT` (default: the paper's 1/4), to
+/// measure what the improved variant's only difference from legacy does (docs/EXPERIMENTS.md).
+fn smoothness_weight() -> f64 {
+    std::env::var("MRF_SMOOTHNESS_WEIGHT")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(MrfConfig::default().smoothness_weight)
+}
+
 fn track(seq: &Sequence, variant: MrfVariant, seed: u64) -> roadtrack::Result<Run> {
+    // The paper's model (`as_published`: no kept blocks; the tracker reads no boxes here).
     let config = MrfConfig {
         variant,
         local_vector_tolerance_px: tolerance(),
-        ..MrfConfig::default()
+        smoothness_weight: smoothness_weight(),
+        ..MrfConfig::default().as_published()
     };
     let (w, h) = seq.frames[0].size();
     let pos = bootstrap_positions(

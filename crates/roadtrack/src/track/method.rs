@@ -57,7 +57,8 @@ pub enum MethodConfig {
         /// The detector (`--detector-config`).
         detector: Box<BackgroundDetectorConfig>,
     },
-    /// The MRF tracker, which reads the pixels itself.
+    /// The MRF tracker, which reads the pixels itself (and the detector's boxes with
+    /// `use_detections`).
     Mrf {
         /// The model (`--config`).
         config: Box<MrfConfig>,
@@ -85,7 +86,7 @@ impl std::fmt::Debug for MethodConfig {
 
 /// The detector and tracker of a method, ready to run.
 pub struct Built {
-    /// The detector (`None` for the MRF, which reads pixels itself).
+    /// The detector (`None` for the MRF as published, which reads pixels itself).
     pub detector: Option<Box<dyn Detector>>,
     /// The tracker, concrete so a caller can reach method-specific state (the MRF's object
     /// map) before boxing it.
@@ -177,7 +178,7 @@ impl MethodConfig {
                 **detector = (**detector).clone().as_published();
             }
             MethodConfig::Mrf { config, .. } => {
-                config.background = config.background.clone().as_published();
+                **config = (**config).clone().as_published();
             }
             MethodConfig::Filter { config, .. } => {
                 config.detector = config.detector.clone().as_published();
@@ -228,8 +229,9 @@ impl MethodConfig {
     /// Builds the method's detector and tracker for frames like those of `info`.
     ///
     /// The detector is `detector` when given (`--detector`), else the method's own
-    /// background detector (relaxation's `--detector-config`, the filters' `[detector]`;
-    /// none for the MRF, which reads pixels). A background model, where one is needed (the
+    /// background detector (relaxation's `--detector-config`, the filters' `[detector]`,
+    /// the default one for the MRF with `use_detections`; none for the MRF as published,
+    /// which reads pixels). A background model, where one is needed (the
     /// background detector, the MRF, a filter likelihood that reads the foreground mask),
     /// is learnt by a first, read-only pass over `input` (the median of `bootstrap_frames`
     /// frames spread over the selection, as `roadtrack detect`).
@@ -247,7 +249,10 @@ impl MethodConfig {
         self.validate()?;
         let own = match &self {
             MethodConfig::Relaxation { detector, .. } => Some((**detector).clone()),
-            MethodConfig::Mrf { .. } => None,
+            // The MRF reads boxes only with `use_detections`; then the background detector's.
+            MethodConfig::Mrf { config, .. } => config
+                .use_detections
+                .then(BackgroundDetectorConfig::default),
             MethodConfig::Filter { config, .. } => Some(config.detector.clone()),
         };
         if let (MethodConfig::Filter { config, .. }, Some(spec)) = (&self, &detector)

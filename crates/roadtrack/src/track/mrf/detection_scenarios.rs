@@ -1,0 +1,220 @@
+//! Scenario tests of the MRF with still blocks and detector boxes, on scripted simulator
+//! scenes (known truth from the simulator).
+
+use super::object_map::{BlockGrid, NO_OBJECT, ObjectId, ObjectMap};
+use super::{MrfConfig, MrfTracker, boxes::box_cover};
+use crate::class::ObjectClass;
+use crate::detect::background_model::bootstrap_from_frames;
+use crate::detection::Detection;
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::geometry::BBox;
+use crate::track_point::TrackPoint;
+use roadtrack_sim::config::DetectionNoiseConfig;
+use roadtrack_sim::external::{ExternalTrajectories, TrajectorySample};
+use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
+use std::collections::BTreeMap;
+
+/// One scripted car: id, lane offset `y_m`, and `(time_s, x_m)` knots (linear between).
+struct Car {
+    id: u64,
+    y_m: f64,
+    knots: Vec<(f64, f64)>,
+    rgb: [u8; 3],
+}
+
+/// Frame, truth boxes by id, and the simulator's detections (no misses, no false
+/// positives, 1 px position noise) of a scripted crossing scene, oblique, 320 × 240 px.
+type Scene = Vec<(Frame, BTreeMap<u64, BBox>, Vec<Detection>)>;
+
+fn scripted(cars: &[Car], frames: u32) -> Result<Scene> {
+    let mut cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames,
+        width: 320,
+        height: 240,
+        ..Default::default()
+    };
+    cfg.detections = DetectionNoiseConfig {
+        miss_prob: 0.0,
+        false_positives_per_frame: 0.0,
+        ..Default::default()
+    };
+    let mut samples = Vec::new();
+    for c in cars {
+        for &(t, x) in &c.knots {
+            samples.push((
+                c.id,
+                TrajectorySample {
+                    time_s: t,
+                    class: ObjectClass::Car,
+                    x_m: x,
+                    y_m: c.y_m,
+                    heading_deg: 0.0,
+                    length_m: 4.5,
+                    width_m: 1.8,
+                    height_m: Some(1.5),
+                    rgb: Some(c.rgb),
+                },
+            ));
+        }
+    }
+    let ext = ExternalTrajectories::new(samples)?;
+    let sim = Simulation::from_trajectories(&cfg, 3, ext, Some(frames))?;
+    sim.map(|s| {
+        let s = s?;
+        let truth = s.truth.iter().map(|t| (t.id, t.bbox)).collect();
+        Ok((s.frame, truth, s.detections))
+    })
+    .collect()
+}
+
+/// The id holding most of the blocks of `b` on `map`, with its block count.
+fn majority(map: &ObjectMap, b: &BBox) -> Option<(ObjectId, usize)> {
+    let mut n: BTreeMap<ObjectId, usize> = BTreeMap::new();
+    for i in box_cover(&map.grid, b) {
+        if map.ids[i] != NO_OBJECT {
+            *n.entry(map.ids[i]).or_insert(0) += 1;
+        }
+    }
+    n.into_iter()
+        .max_by_key(|&(id, c)| (c, std::cmp::Reverse(id)))
+}
+
+#[test]
+fn a_car_that_stops_at_a_light_keeps_its_blocks_and_its_id() -> Result<()> {
+    // Drives 9 m in 1.5 s, then waits 4.5 s: in the median start-up the waiting car is
+    // background (it stands there in 3/4 of the frames), so background subtraction stops
+    // marking its blocks once it has stopped.
+    let car = Car {
+        id: 1,
+        y_m: -1.75,
+        knots: vec![(0.0, -9.0), (1.5, 0.0), (6.0, 0.0)],
+        rgb: [200, 40, 30],
+    };
+    let scene = scripted(&[car], 60)?;
+    let frames: Vec<Frame> = scene.iter().map(|s| s.0.clone()).collect();
+    let truth: Vec<BBox> = scene
+        .iter()
+        .map(|s| {
+            s.1.get(&1)
+                .copied()
+                .unwrap_or(BBox::new(-99.0, -99.0, 1.0, 1.0))
+        })
+        .collect();
+    let run = |cfg: MrfConfig| -> Result<Vec<ObjectMap>> {
+        let mut t = MrfTracker::new(cfg.clone(), 320, 240, 1)?;
+        t.set_background(bootstrap_from_frames(&frames, cfg.background.clone())?)?;
+        frames
+            .iter()
+            .map(|f| {
+                t.step(f)?;
+                Ok(t.object_map().clone())
+            })
+            .collect()
+    };
+    // It stops at frame 16 (index 15); its box then covers about 45 blocks.
+    let cover = box_cover(&BlockGrid::for_frame(320, 240), &truth[59]).len();
+    assert!(cover >= 30, "{cover}");
+    // Matched blocks kept (the default): the id it had while driving covers a quarter of
+    // its box to the end (the blocks it still held when it stopped; the approach was
+    // already fading into the background).
+    let maps = run(MrfConfig::default())?;
+    let (driving_id, _) = majority(&maps[8], &truth[8]).expect("tracked while driving up");
+    for k in 9..60 {
+        let m = majority(&maps[k], &truth[k]);
+        assert!(
+            matches!(m, Some((id, n)) if id == driving_id && 4 * n >= cover),
+            "frame {}: {m:?}, want id {driving_id} on a quarter of its {cover} blocks",
+            k + 1
+        );
+    }
+    // As published (moving blocks only), the waiting car drops out of the map as it stops.
+    let maps = run(MrfConfig::default().as_published())?;
+    for k in 15..60 {
+        let m = majority(&maps[k], &truth[k]);
+        assert!(
+            m.is_none_or(|(_, n)| n <= 2),
+            "frame {}: {m:?}, the published model was expected to lose the waiting car",
+            k + 1
+        );
+    }
+    Ok(())
+}
+
+/// Runs the tracker with the scene's detections; returns the points of every frame.
+fn run_with_boxes(cfg: &MrfConfig, scene: &Scene) -> Result<Vec<Vec<TrackPoint>>> {
+    let frames: Vec<Frame> = scene.iter().map(|s| s.0.clone()).collect();
+    let mut t = MrfTracker::new(cfg.clone(), 320, 240, 1)?;
+    t.set_background(bootstrap_from_frames(&frames, cfg.background.clone())?)?;
+    scene
+        .iter()
+        .map(|(f, _, d)| t.step_detections(f, d))
+        .collect()
+}
+
+/// For each truth id, the ids of the output boxes that overlap its box by IoU ≥ 0.5, over
+/// the frames `from..`; and the number of frames it had none.
+fn ids_per_truth(
+    scene: &Scene,
+    points: &[Vec<TrackPoint>],
+    from: usize,
+) -> BTreeMap<u64, (std::collections::BTreeSet<u64>, usize)> {
+    let mut out: BTreeMap<u64, (std::collections::BTreeSet<u64>, usize)> = BTreeMap::new();
+    for ((_, truth, _), pts) in scene.iter().zip(points).skip(from) {
+        for (&gt, b) in truth {
+            let e = out.entry(gt).or_default();
+            match pts.iter().find(|p| p.bbox.iou(b) >= 0.5) {
+                Some(p) => {
+                    e.0.insert(p.id);
+                }
+                None => e.1 += 1,
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn detector_boxes_split_two_cars_that_enter_side_by_side() -> Result<()> {
+    // Two cars in the two lanes, same speed, side by side: in the oblique view the near one
+    // hides part of the far one, their pixels form one connected region, and the paper's
+    // pixel birth gives them one id.
+    let cars = [
+        Car {
+            id: 1,
+            y_m: -1.75,
+            knots: vec![(0.0, -14.0), (4.0, 14.0)],
+            rgb: [200, 40, 30],
+        },
+        Car {
+            id: 2,
+            y_m: 1.75,
+            knots: vec![(0.0, -14.0), (4.0, 14.0)],
+            rgb: [40, 70, 200],
+        },
+    ];
+    let scene = scripted(&cars, 40)?;
+    let from = 8;
+    let with_boxes = ids_per_truth(
+        &scene,
+        &run_with_boxes(&MrfConfig::default(), &scene)?,
+        from,
+    );
+    for (gt, (ids, missed)) in &with_boxes {
+        assert_eq!(ids.len(), 1, "car {gt}: ids {ids:?}");
+        assert!(*missed <= 1, "car {gt}: {missed} frames without its box");
+    }
+    let a = with_boxes[&1].0.iter().next();
+    assert_ne!(a, with_boxes[&2].0.iter().next(), "one id for both cars");
+    // From pixels alone, the two cars do not both get a box of their own.
+    let pixels = ids_per_truth(
+        &scene,
+        &run_with_boxes(&MrfConfig::default().as_published(), &scene)?,
+        from,
+    );
+    let missed: usize = pixels.values().map(|v| v.1).sum();
+    assert!(missed >= 10, "pixels alone separated the cars: {pixels:?}");
+    Ok(())
+}
