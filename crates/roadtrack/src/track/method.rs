@@ -170,7 +170,8 @@ impl MethodConfig {
 
     /// The method with its background detector and model as published: median start-up,
     /// no shadow suppression, hold or splitting (see
-    /// [`BackgroundDetectorConfig::as_published`]).
+    /// [`BackgroundDetectorConfig::as_published`]); the filters weigh particles by the
+    /// image likelihood only.
     pub fn as_published(mut self) -> Self {
         match &mut self {
             MethodConfig::Relaxation { detector, .. } => {
@@ -181,6 +182,8 @@ impl MethodConfig {
             }
             MethodConfig::Filter { config, .. } => {
                 config.detector = config.detector.clone().as_published();
+                // The paper weighs particles by the image likelihood alone.
+                config.measurements = super::filter::Measurements::Image;
             }
         }
         self

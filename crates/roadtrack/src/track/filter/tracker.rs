@@ -95,9 +95,11 @@ impl FilterTracker {
         model: Option<Box<dyn Likelihood>>,
     ) -> Result<Self> {
         cfg.validate()?;
-        let shared = method == FilterMethod::Phd
-            || cfg.likelihood.reference == ColourReference::Shared
-            || model.is_some();
+        // With the detections alone nothing reads the image: no reference to wait for.
+        let shared = cfg.measurements.uses_image()
+            && (method == FilterMethod::Phd
+                || cfg.likelihood.reference == ColourReference::Shared
+                || model.is_some());
         Ok(Self {
             method,
             cfg: cfg.clone(),
@@ -234,6 +236,10 @@ impl Runner {
         let (likelihood, window_px) = if shared {
             let (lik, win) = shared_likelihood(&lc, pending, &mask, model)?;
             (Some(lik), Some(win))
+        } else if !cfg.measurements.uses_image() {
+            // Never evaluated: the detections are the only measurements.
+            let none: Box<dyn Likelihood> = Box::new(|_: &RgbImage, _: Point| 1.0);
+            (Some(none), None)
         } else {
             (None, None)
         };
@@ -276,6 +282,9 @@ impl Runner {
                 let mut phd_cfg = cfg.phd.clone();
                 phd_cfg.object_width_px = default_size.0;
                 phd_cfg.object_height_px = default_size.1;
+                if cfg.measurements.uses_detections() {
+                    phd_cfg.merge_distance = cfg.detections.merge_distance_px;
+                }
                 let mut t = PhdTracker::new(phd_cfg, lik, seed)?;
                 t.set_grid_births(matches!(cfg.births, BirthSource::Grid | BirthSource::Both));
                 Filter::Phd(Box::new(t))
@@ -316,7 +325,34 @@ impl Runner {
             m.set(mask);
         }
         let cfg = &self.cfg;
+        let with_image = cfg.measurements.uses_image();
         let (mut points, expected, tracked) = match &mut self.filter {
+            Filter::Pf(t) if cfg.measurements.uses_detections() => {
+                let dets = finite(dets);
+                let z = cfg.detections.measurements(&dets);
+                let pts = t.step_with_detections(frame, &dets, &z, &cfg.detections, with_image)?;
+                let tracked: Vec<(u64, Point)> =
+                    pts.iter().map(|p| (p.id, p.bbox.centre())).collect();
+                let n = t.n_objects() as f64;
+                (pts, n, tracked)
+            }
+            Filter::Phd(t) if cfg.measurements.uses_detections() => {
+                let z = cfg.detections.measurements(&finite(dets));
+                let pts = t.step_with_detections(
+                    frame,
+                    &z,
+                    &cfg.detections,
+                    cfg.birth_particles_per_detection,
+                    with_image,
+                )?;
+                let tracked: Vec<(u64, Point)> = t.filter().map_or_else(Vec::new, |f| {
+                    f.all_estimates()
+                        .iter()
+                        .map(|e| (u64::from(e.label), e.pos))
+                        .collect()
+                });
+                (pts, t.expected_count(), tracked)
+            }
             Filter::Pf(t) => {
                 // Choice: a detection starts an object only when no object's last estimate
                 // lies within half its box's longer side (at least the PF's own gate), so a
@@ -402,6 +438,14 @@ impl Runner {
         };
         Ok((points, count))
     }
+}
+
+/// The detections whose centre is finite (the measurements).
+fn finite(dets: &[Detection]) -> Vec<Detection> {
+    dets.iter()
+        .filter(|d| d.pos_px.x.is_finite() && d.pos_px.y.is_finite())
+        .cloned()
+        .collect()
 }
 
 /// The shared likelihood: `model` when given, else the colour likelihood with reference =

@@ -19,9 +19,11 @@
 //! measurements.
 //!
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
+//! `detections.rs` (step d with detections as measurements),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod config;
+mod detections;
 mod labelled;
 #[cfg(test)]
 mod tests;
