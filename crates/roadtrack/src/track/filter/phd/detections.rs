@@ -4,6 +4,7 @@
 
 use super::super::detections::BoxMeasurement;
 use super::{LabelUpdate, LabelledPhd};
+use crate::geometry::Point;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 
@@ -31,7 +32,7 @@ impl LabelledPhd {
             let label = self.new_label();
             labels.push(label);
             for _ in 0..per_point {
-                let pos = crate::geometry::Point::new(
+                let pos = Point::new(
                     z.pos.x + z.sigma.x * self.gaussian(),
                     z.pos.y + z.sigma.y * self.gaussian(),
                 );
@@ -40,7 +41,7 @@ impl LabelledPhd {
                 }
                 let q: f64 = points.iter().map(|zj| zj.density(pos.x, pos.y)).sum();
                 let w = (mu / area) / (per_point as f64 * q);
-                let vel = crate::geometry::Point::new(s * self.gaussian(), s * self.gaussian());
+                let vel = Point::new(s * self.gaussian(), s * self.gaussian());
                 self.particles.push(pos, vel, w, label);
             }
         }

@@ -170,15 +170,13 @@ impl PhdTracker {
         let Some(filter) = self.filter.as_mut() else {
             return Ok(Vec::new());
         };
-        // Births at the detections no label explains (label means after prediction).
+        // Births at the detections no label explains: none within `birth_gate_sigmas` of
+        // the detection's σ from a label's mean after prediction.
         let predicted: Vec<Point> = filter.all_estimates().iter().map(|e| e.pos).collect();
+        let gate2 = model.birth_gate_sigmas.powi(2);
         let free: Vec<BoxMeasurement> = measurements
             .iter()
-            .filter(|m| {
-                !predicted
-                    .iter()
-                    .any(|p| mahalanobis2(m, *p) <= model.birth_gate_sigmas.powi(2))
-            })
+            .filter(|m| !predicted.iter().any(|p| mahalanobis2(m, *p) <= gate2))
             .copied()
             .collect();
         filter.add_labelled_births(&free, per_point);
