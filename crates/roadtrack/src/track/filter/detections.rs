@@ -239,7 +239,10 @@ mod tests {
 
     #[test]
     fn a_measurement_takes_its_sigma_from_the_box_with_a_floor() {
-        let cfg = DetectionLikelihoodConfig::default();
+        let cfg = DetectionLikelihoodConfig {
+            sigma_box_fraction: 0.15,
+            ..Default::default()
+        };
         let d = Detection {
             size_px: Some((10.0, 40.0)),
             ..Detection::at(1, 1, Point::new(5.0, 6.0))

@@ -14,6 +14,8 @@
 //! component, never one heap object per particle.
 
 pub mod config;
+#[cfg(test)]
+mod detection_tests;
 pub mod detections;
 pub mod motion;
 pub mod particle;

@@ -15,6 +15,7 @@
 
 use super::config::{BirthSource, ColourReference, FilterMethod, FilterTrackConfig};
 use super::config::{LikelihoodKind, TrackLikelihoodConfig};
+use super::detections::Measurements;
 use super::particle::{LikelihoodFactory, ParticleFilterTracker};
 use super::phd::{FilterStageTimes, PhdTracker};
 use crate::detect::FrameDetections;
@@ -84,7 +85,8 @@ impl FilterTracker {
     /// by every object (PF and PHD). [`TrackLikelihoodConfig::kind`] still applies
     /// (`foreground` ignores the model; `colour_foreground` multiplies the model by the
     /// foreground fraction); the window and box sizes stay the median detection box of the
-    /// reference frames.
+    /// reference frames. A model with [`Measurements::Detections`] (the default) weighs
+    /// by the image instead ([`Measurements::Image`]): a network is an image likelihood.
     ///
     /// # Errors
     /// An invalid config.
@@ -95,6 +97,10 @@ impl FilterTracker {
         model: Option<Box<dyn Likelihood>>,
     ) -> Result<Self> {
         cfg.validate()?;
+        let mut cfg = cfg.clone();
+        if model.is_some() && cfg.measurements == Measurements::Detections {
+            cfg.measurements = Measurements::Image;
+        }
         // With the detections alone nothing reads the image: no reference to wait for.
         let shared = cfg.measurements.uses_image()
             && (method == FilterMethod::Phd
@@ -102,7 +108,7 @@ impl FilterTracker {
                 || model.is_some());
         Ok(Self {
             method,
-            cfg: cfg.clone(),
+            cfg,
             seed,
             shared,
             model,
@@ -578,7 +584,10 @@ mod tests {
     #[test]
     fn phd_weight_sum_tracks_the_true_count_on_a_simulated_scene() -> Result<()> {
         let (frames, truth) = three_cars(30)?;
-        let cfg = FilterTrackConfig::default();
+        let cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         let (_, counts) = run(FilterMethod::Phd, &frames, &cfg)?;
         assert_eq!(counts.len(), frames.len());
         let mut errors = Vec::new();
@@ -610,7 +619,10 @@ mod tests {
             ..Default::default()
         };
         sim.crossing.inflow_veh_per_h_per_direction = 0.0;
-        let mut cfg = FilterTrackConfig::default();
+        let mut cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         cfg.phd.motion = crate::track::filter::motion::ConstantVelocity::proportional(0.2, 1.0);
         cfg.phd.class = ObjectClass::Pedestrian;
         cfg.phd.label_update = update;
@@ -693,7 +705,10 @@ mod tests {
     #[test]
     fn pf_follows_each_car() -> Result<()> {
         let (frames, truth) = three_cars(24)?;
-        let cfg = FilterTrackConfig::default();
+        let cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         let (in_memory, _) = run(FilterMethod::Pf, &frames, &cfg)?;
         assert!(!in_memory.is_empty());
         // Reported centres lie on a car: inside a truth box of the frame. (The colour
