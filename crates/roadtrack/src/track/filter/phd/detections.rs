@@ -117,10 +117,10 @@ impl LabelledPhd {
         }
         let mut c_label = vec![0.0; slot.len() * m];
         if labelled && m > 0 {
-            for i in 0..n {
-                if let Some(&s) = slot.get(&p.label[i]) {
+            for (i, (l, wi)) in p.label.iter().zip(w).enumerate() {
+                if let Some(&s) = slot.get(l) {
                     for j in 0..m {
-                        c_label[s * m + j] += g(i, j) * w[i];
+                        c_label[s * m + j] += g(i, j) * wi;
                     }
                 }
             }
