@@ -257,16 +257,36 @@ fn the_filters_with_detections_are_the_same_at_1_and_2_threads() -> Result<()> {
     Ok(())
 }
 
+/// `configs/filters-pedestrians.toml`, as loaded by `track --config`.
+fn pedestrian_config() -> Result<FilterTrackConfig> {
+    let path = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/filters-pedestrians.toml"
+    ));
+    FilterTrackConfig::from_toml_file(path)
+}
+
+#[test]
+fn the_committed_pedestrian_config_is_valid_and_keeps_the_detection_likelihood() -> Result<()> {
+    let cfg = pedestrian_config()?;
+    assert_eq!(cfg.measurements, Measurements::Detections);
+    assert_eq!(
+        cfg.pf.motion,
+        super::ConstantVelocity::proportional(0.2, 0.5),
+        "the paper's pedestrian model"
+    );
+    assert_eq!(cfg.phd.motion, cfg.pf.motion);
+    assert_ne!(cfg, FilterTrackConfig::default());
+    Ok(())
+}
+
 /// Count MAE of the detection PHD per scene, seeds 1–3, 300 frames (docs/EXPERIMENTS.md
 /// "Filters with detections as measurements"). Run with
 /// `cargo test -p roadtrack --lib detection_count_experiment -- --ignored --nocapture`.
 #[test]
 #[ignore = "experiment, several minutes"]
 fn detection_count_experiment() -> Result<()> {
-    let pedestrians: FilterTrackConfig = crate::config::load_toml(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../configs/filters-pedestrians.toml"
-    )))?;
+    let pedestrians = pedestrian_config()?;
     for (scene_kind, view) in [
         (SceneKind::Crossing, ViewKind::Oblique),
         (SceneKind::Road, ViewKind::Aerial),
