@@ -254,6 +254,7 @@ impl MethodConfig {
             MethodConfig::Filter { config, .. } => Some(config.detector.clone()),
         };
         if let (MethodConfig::Filter { config, .. }, Some(spec)) = (&self, &detector)
+            && config.measurements.uses_image()
             && config.likelihood.kind != LikelihoodKind::Colour
             && !matches!(spec, DetectorSpec::Background(_))
         {

@@ -379,7 +379,8 @@ impl ParticleFilterTracker {
         let assigned = assign_closest(&predicted, measurements, model.pf_gate_sigmas);
         let (pd, kappa) = (
             model.detection_prob,
-            model.clutter_per_frame / f64::from(image.width().max(1) * image.height().max(1)),
+            model.clutter_per_frame
+                / (f64::from(image.width().max(1)) * f64::from(image.height().max(1))),
         );
         let cfg = &self.config;
         self.objects

@@ -167,7 +167,10 @@ impl FilterTracker {
 
 impl Tracker for FilterTracker {
     fn step(&mut self, frame: &Frame, detections: &FrameDetections) -> Result<Vec<FramePoints>> {
-        if self.cfg.likelihood.kind != LikelihoodKind::Colour && detections.foreground.is_none() {
+        if self.cfg.measurements.uses_image()
+            && self.cfg.likelihood.kind != LikelihoodKind::Colour
+            && detections.foreground.is_none()
+        {
             return Err(Error::Invalid(format!(
                 "frame {}: the {:?} likelihood needs a detector with a foreground mask",
                 frame.index, self.cfg.likelihood.kind
