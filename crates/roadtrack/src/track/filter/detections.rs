@@ -18,7 +18,8 @@
 //! [`Measurements`] selects the paper's image likelihood, the detections, or both (the
 //! image likelihood `h_i` then multiplies `g_ij`).
 
-use super::phd::LabelUpdate;
+pub use super::phd::BoxMeasurement;
+use super::phd::{DetectionModel, LabelUpdate};
 use crate::detection::Detection;
 use crate::error::{Error, Result};
 use crate::geometry::Point;
@@ -170,34 +171,19 @@ impl DetectionLikelihoodConfig {
         }
     }
 
+    /// The PHD's part of the model ([`super::phd::PhdTracker::step_with_detections`]).
+    pub fn phd_model(&self) -> DetectionModel {
+        DetectionModel {
+            detection_prob: self.detection_prob,
+            clutter_per_frame: self.clutter_per_frame,
+            birth_gate_sigmas: self.birth_gate_sigmas,
+            label_update: self.label_update,
+        }
+    }
+
     /// The measurements of `dets`, in order.
     pub fn measurements(&self, dets: &[Detection]) -> Vec<BoxMeasurement> {
         dets.iter().map(|d| self.measurement(d)).collect()
-    }
-}
-
-/// One detection as a measurement: its box centre and the standard deviation of the
-/// centre's error per axis, px.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoxMeasurement {
-    /// Box centre.
-    pub pos: Point,
-    /// `σ_x`, `σ_y` (> 0).
-    pub sigma: Point,
-}
-
-impl BoxMeasurement {
-    /// `exp(−d²/2)` with `d` the Mahalanobis distance of `(x, y)` from the centre: the
-    /// unit-peak kernel (the label rules' `h`).
-    pub fn kernel(&self, x: f64, y: f64) -> f64 {
-        let dx = (x - self.pos.x) / self.sigma.x;
-        let dy = (y - self.pos.y) / self.sigma.y;
-        (-0.5 * (dx * dx + dy * dy)).exp()
-    }
-
-    /// The Gaussian density `N(z; (x, y), diag(σ_x², σ_y²))`.
-    pub fn density(&self, x: f64, y: f64) -> f64 {
-        self.kernel(x, y) / (2.0 * std::f64::consts::PI * self.sigma.x * self.sigma.y)
     }
 }
 

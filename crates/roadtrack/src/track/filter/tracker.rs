@@ -350,7 +350,7 @@ impl Runner {
                 let pts = t.step_with_detections(
                     frame,
                     &z,
-                    &cfg.detections,
+                    &cfg.detections.phd_model(),
                     cfg.birth_particles_per_detection,
                     with_image,
                 )?;

@@ -2,11 +2,49 @@
 //! standard SMC-PHD update (Vo, Singh & Doucet 2003) over box measurements, each with its
 //! own `σ` per axis (see [`crate::track::filter::detections`]).
 
-use super::super::detections::BoxMeasurement;
 use super::{LabelUpdate, LabelledPhd};
 use crate::geometry::Point;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+
+/// One detection as a measurement: its box centre and the standard deviation of the
+/// centre's error per axis, px.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxMeasurement {
+    /// Box centre.
+    pub pos: Point,
+    /// `σ_x`, `σ_y` (> 0).
+    pub sigma: Point,
+}
+
+impl BoxMeasurement {
+    /// `exp(−d²/2)` with `d` the Mahalanobis distance of `(x, y)` from the centre: the
+    /// unit-peak kernel (the label rules' `h`).
+    pub fn kernel(&self, x: f64, y: f64) -> f64 {
+        let dx = (x - self.pos.x) / self.sigma.x;
+        let dy = (y - self.pos.y) / self.sigma.y;
+        (-0.5 * (dx * dx + dy * dy)).exp()
+    }
+
+    /// The Gaussian density `N(z; (x, y), diag(σ_x², σ_y²))`.
+    pub fn density(&self, x: f64, y: f64) -> f64 {
+        self.kernel(x, y) / (2.0 * std::f64::consts::PI * self.sigma.x * self.sigma.y)
+    }
+}
+
+/// What the PHD's detection step needs of the detection model
+/// (`DetectionLikelihoodConfig::phd_model` in [`crate::track::filter::detections`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectionModel {
+    /// `p_D`.
+    pub detection_prob: f64,
+    /// `λ_c`, false detections per frame.
+    pub clutter_per_frame: f64,
+    /// Births only at detections farther than this many `σ` from every label.
+    pub birth_gate_sigmas: f64,
+    /// Step d) for labelled particles.
+    pub label_update: LabelUpdate,
+}
 
 impl LabelledPhd {
     /// Step c) with detections: `per_point` birth particles drawn around each of `points`

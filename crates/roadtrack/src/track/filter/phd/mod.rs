@@ -31,6 +31,7 @@ mod tracker;
 
 pub use super::FilterStageTimes;
 pub use config::{LabelUpdate, PhdConfig};
+pub use detections::{BoxMeasurement, DetectionModel};
 pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;

@@ -1,8 +1,7 @@
 //! [`PhdTracker`]: the labelled SMC-PHD filter on frames with an image likelihood.
 
 use super::super::SurveillanceRegion;
-use super::super::detections::{BoxMeasurement, DetectionLikelihoodConfig};
-use super::{FilterStageTimes, LabelledPhd, PhdConfig};
+use super::{BoxMeasurement, DetectionModel, FilterStageTimes, LabelledPhd, PhdConfig};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::geometry::{BBox, Point};
@@ -124,7 +123,7 @@ impl PhdTracker {
 
     /// One frame with the detections as measurements ([`LabelledPhd::update_detections`]):
     /// predict → a labelled birth at each detection farther than
-    /// [`DetectionLikelihoodConfig::birth_gate_sigmas`] from every label's prediction
+    /// [`DetectionModel::birth_gate_sigmas`] from every label's prediction
     /// ([`LabelledPhd::add_labelled_births`], `per_point` particles each) → the image
     /// likelihood when `with_image` → update → border-exit and merge rules
     /// ([`LabelledPhd::update_labels_detections`]) → estimates → resampling. Returns the
@@ -136,7 +135,7 @@ impl PhdTracker {
         &mut self,
         frame: &Frame,
         measurements: &[BoxMeasurement],
-        model: &DetectionLikelihoodConfig,
+        model: &DetectionModel,
         per_point: usize,
         with_image: bool,
     ) -> Result<Vec<TrackPoint>> {
