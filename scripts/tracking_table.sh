@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Trackers on the same public detections (det/det.txt) of simulated scenes: norfair's IoU
 # tracker (scripts/norfair_peer.py) beside every roadtrack method as published
-# (--as-published) and with the shared life cycle, and relaxation with
-# configs/relaxation-video.toml. Class-agnostic HOTA, AssA, IDF1, MOTA, IDSW by
+# (--as-published) and with the shared life cycle (the filters: detections as
+# measurements), relaxation with configs/relaxation-video.toml, and the filters
+# with configs/filters-pedestrians.toml. Class-agnostic HOTA, AssA, IDF1, MOTA, IDSW by
 # `roadtrack evaluate` (TrackEval's definitions). Prints a markdown table (docs/TRACKING.md).
 #
 #   scripts/tracking_table.sh [FRAMES] [SEEDS...]      # default 300 frames, seeds 1 2 3
@@ -48,5 +49,10 @@ for sv in road:aerial intersection:oblique crossing:oblique; do
     "$rt" -q track "$seq" --method relaxation --detector file \
       --config configs/relaxation-video.toml -o "$work/t.txt"
     row "$at | relaxation, life cycle + relaxation-video.toml" "$seq" "$work/t.txt"
+    for method in pf phd; do
+      "$rt" -q track "$seq" --method "$method" --detector file \
+        --config configs/filters-pedestrians.toml -o "$work/t.txt"
+      row "$at | $method, detections + filters-pedestrians.toml" "$seq" "$work/t.txt"
+    done
   done
 done

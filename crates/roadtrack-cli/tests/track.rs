@@ -425,3 +425,68 @@ fn relaxation_video_config_beats_the_defaults_on_public_detections() {
     assert!(h1 > h0 + 0.1 && h1 > 0.65, "HOTA {h0} → {h1}");
     assert!(i1 > i0 + 0.1 && i1 > 0.8, "IDF1 {i0} → {i1}");
 }
+
+/// `--likelihood detections` (the filters' default) against the paper's colour likelihood
+/// on the same public detections; the flag's usage errors and a bad `[detections]` field.
+#[test]
+fn filters_weigh_particles_by_the_detections_and_refuse_bad_settings() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 30);
+    let gt = roadtrack::io::mot::read_gt(&seq.join("gt/gt.txt")).expect("gt");
+    let truth = roadtrack::eval::papers::points_from_gt(&gt);
+    for method in ["pf", "phd"] {
+        let score = |likelihood: &str| {
+            let out = dir.path().join(format!("{method}_{likelihood}.txt"));
+            let o = bin()
+                .arg("track")
+                .arg(&seq)
+                .args([
+                    "--method",
+                    method,
+                    "--detector",
+                    "file",
+                    "-q",
+                    "--seed",
+                    "1",
+                ])
+                .args(["--likelihood", likelihood, "-o"])
+                .arg(&out)
+                .output()
+                .expect("run");
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            let tracks = roadtrack::io::mot::read_tracks(&out).expect("tracks");
+            let t = roadtrack::eval::papers::detection_table(
+                &truth,
+                &roadtrack::eval::papers::points_from_tracks(&tracks),
+                5.0,
+            )
+            .expect("table");
+            t.precision * t.recall
+        };
+        let (detections, colour) = (score("detections"), score("colour"));
+        assert!(
+            detections > 0.6 && detections > colour + 0.2,
+            "{method}: detections {detections:.3}, colour {colour:.3}"
+        );
+    }
+    let o = bin()
+        .args(["track", "x", "--method", "phd", "--as-published"])
+        .args(["--likelihood", "detections"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let cfg = dir.path().join("bad.toml");
+    std::fs::write(&cfg, "[detections]\ndetection_prob = 2.0\n").expect("write");
+    let o = bin()
+        .args(["track", "x", "--method", "pf", "--config"])
+        .arg(&cfg)
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("detections.detection_prob") && e.contains("bad.toml"),
+        "{e}"
+    );
+}

@@ -126,7 +126,11 @@ fn settings(frames: u32) -> Vec<Setting> {
 
 /// The tracker config of a setting: the paper's parameters, pedestrians with σ = 0.2·|v|.
 fn track_config(pedestrians: bool, kind: LikelihoodKind) -> FilterTrackConfig {
-    let mut cfg = FilterTrackConfig::default();
+    let mut cfg = FilterTrackConfig {
+        // The image likelihoods are what these tables compare.
+        measurements: roadtrack::track::filter::Measurements::Image,
+        ..FilterTrackConfig::default()
+    };
     cfg.likelihood.kind = kind;
     if pedestrians {
         cfg.pf.motion = ConstantVelocity::proportional(0.2, 1.0);

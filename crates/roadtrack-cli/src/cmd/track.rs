@@ -10,7 +10,7 @@ use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::frame::Frame;
 use roadtrack::io::source;
 use roadtrack::track::confirm::LifecycleStage;
-use roadtrack::track::filter::{FilterMethod, FilterTrackConfig};
+use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, Measurements};
 use roadtrack::track::method::BuiltTracker;
 use roadtrack::track::mrf::object_map::BLOCK_PX;
 use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
@@ -32,6 +32,18 @@ pub enum LikelihoodArg {
     Cnn,
     /// The SSDLite pedestrian detector (scripts/setup.sh --models; or --model F.pb).
     Ssd,
+    /// The detections as measurements: p_D, clutter, σ from the box (the config's
+    /// `[detections]`); the default without --likelihood and --as-published.
+    Detections,
+    /// The detections times the colour likelihood.
+    ColourDetections,
+}
+
+impl LikelihoodArg {
+    /// Whether the likelihood is a network that needs --model.
+    fn needs_model(self) -> bool {
+        matches!(self, Self::Cnn | Self::Ssd)
+    }
 }
 
 /// Track every object: MOTChallenge tracks, and optionally trajectories CSV (with metres
@@ -83,7 +95,8 @@ pub struct Args {
     /// MRF: model variant (overrides the config).
     #[arg(long, value_enum)]
     pub mrf_variant: Option<MrfVariant>,
-    /// pf/phd: the likelihood h(y | x) [default: colour].
+    /// pf/phd: the likelihood h(y | x) [default: the config's `measurements`, detections;
+    /// colour with --as-published].
     #[arg(long, value_enum)]
     pub likelihood: Option<LikelihoodArg>,
     /// pf/phd: model file for --likelihood cnn (ONNX, required) or ssd (TensorFlow frozen
@@ -154,11 +167,21 @@ fn check_method_flags(args: &Args) -> Result<()> {
     // pass one seed; relaxation has nothing to seed.
     if filter
         && args.model.is_some()
-        && args.likelihood() == LikelihoodArg::Colour
+        && !args.likelihood().needs_model()
         && !args.model_is_detectors()
     {
         return Err(crate::flags::conflict(
             "--model needs --likelihood cnn or ssd",
+        ));
+    }
+    if args.lifecycle.as_published
+        && matches!(
+            args.likelihood,
+            Some(LikelihoodArg::Detections | LikelihoodArg::ColourDetections)
+        )
+    {
+        return Err(crate::flags::conflict(
+            "--as-published weighs particles by the image likelihood, not --likelihood detections",
         ));
     }
     if args.detector_config.is_some() && args.detector.is_file() {
@@ -188,7 +211,7 @@ impl Args {
     fn model_is_detectors(&self) -> bool {
         self.detector.is_onnx()
             && self.detector.onnx.detector_model.is_none()
-            && self.likelihood() == LikelihoodArg::Colour
+            && !self.likelihood().needs_model()
     }
 }
 
@@ -245,7 +268,20 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         }
         Method::Pf | Method::Phd => {
             let mut config: FilterTrackConfig = load_config(args.config.as_deref())?;
-            if args.likelihood() == LikelihoodArg::Colour {
+            config.measurements = match args.likelihood {
+                None => config.measurements,
+                Some(LikelihoodArg::Detections) => Measurements::Detections,
+                Some(LikelihoodArg::ColourDetections) => Measurements::DetectionsAndImage,
+                // A network with `measurements = "detections_and_image"` in the config
+                // multiplies the detections.
+                Some(LikelihoodArg::Cnn | LikelihoodArg::Ssd)
+                    if config.measurements == Measurements::DetectionsAndImage =>
+                {
+                    Measurements::DetectionsAndImage
+                }
+                Some(_) => Measurements::Image,
+            };
+            if !args.likelihood().needs_model() {
                 if let Some(s) = args.dense_stride {
                     config.likelihood.dense_stride_px = s;
                 }
@@ -388,7 +424,9 @@ fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Lik
     use roadtrack_cnn::model::{ModelKind, ModelSpec, load_model_likelihood};
     let spec = ModelSpec {
         kind: match args.likelihood() {
-            LikelihoodArg::Colour => ModelKind::Colour,
+            LikelihoodArg::Colour | LikelihoodArg::Detections | LikelihoodArg::ColourDetections => {
+                ModelKind::Colour
+            }
             LikelihoodArg::Cnn => ModelKind::Cnn,
             LikelihoodArg::Ssd => ModelKind::Ssd,
         },
@@ -403,7 +441,9 @@ fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Lik
 #[cfg(not(feature = "cnn"))]
 fn load_network(args: &Args) -> Result<Option<Box<dyn roadtrack::likelihood::Likelihood>>> {
     match args.likelihood() {
-        LikelihoodArg::Colour => Ok(None),
+        LikelihoodArg::Colour | LikelihoodArg::Detections | LikelihoodArg::ColourDetections => {
+            Ok(None)
+        }
         other => anyhow::bail!(
             "the {} likelihood needs roadtrack built with the `cnn` feature \
              (cargo build -p roadtrack-cli --features cnn)",

@@ -171,7 +171,8 @@ impl MethodConfig {
 
     /// The method with its background detector and model as published: median start-up,
     /// no shadow suppression, hold or splitting (see
-    /// [`BackgroundDetectorConfig::as_published`]).
+    /// [`BackgroundDetectorConfig::as_published`]); the filters weigh particles by the
+    /// image likelihood only.
     pub fn as_published(mut self) -> Self {
         match &mut self {
             MethodConfig::Relaxation { detector, .. } => {
@@ -182,6 +183,8 @@ impl MethodConfig {
             }
             MethodConfig::Filter { config, .. } => {
                 config.detector = config.detector.clone().as_published();
+                // The paper weighs particles by the image likelihood alone.
+                config.measurements = super::filter::Measurements::Image;
             }
         }
         self
@@ -256,6 +259,7 @@ impl MethodConfig {
             MethodConfig::Filter { config, .. } => Some(config.detector.clone()),
         };
         if let (MethodConfig::Filter { config, .. }, Some(spec)) = (&self, &detector)
+            && config.measurements.uses_image()
             && config.likelihood.kind != LikelihoodKind::Colour
             && !matches!(spec, DetectorSpec::Background(_))
         {

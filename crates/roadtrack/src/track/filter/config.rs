@@ -1,6 +1,7 @@
 //! Configuration of the image filters (`roadtrack track --method pf|phd --config F.toml`:
 //! tables `[detector]`, `[pf]`, `[phd]`, `[likelihood]`).
 
+use super::detections::{DetectionLikelihoodConfig, Measurements};
 use super::particle::ParticleFilterConfig;
 use super::phd::PhdConfig;
 use crate::detect::background::BackgroundDetectorConfig;
@@ -137,7 +138,8 @@ impl TrackLikelihoodConfig {
 }
 
 /// Everything `roadtrack track --method pf|phd` needs besides the input and the seed
-/// (`--config F.toml`: tables `[detector]`, `[pf]`, `[phd]`, `[likelihood]`).
+/// (`--config F.toml`: tables `[detector]`, `[pf]`, `[phd]`, `[likelihood]`,
+/// `[detections]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FilterTrackConfig {
@@ -149,6 +151,14 @@ pub struct FilterTrackConfig {
     pub phd: PhdConfig,
     /// The colour likelihood.
     pub likelihood: TrackLikelihoodConfig,
+    /// What the particles are weighed by: the image likelihood (the paper), the
+    /// detections, or both. Default detections.
+    // Choice: the detection likelihood is the default because it measured better on every
+    // simulated scene (docs/EXPERIMENTS.md "Filters with detections as measurements");
+    // `--as-published` and `--likelihood colour|cnn|ssd` give the paper's image likelihood.
+    pub measurements: Measurements,
+    /// The detection likelihood's model (`[detections]`).
+    pub detections: DetectionLikelihoodConfig,
     /// Where PHD births go. Default detections.
     // Choice: the paper's grid births rely on a classifier that scores background ≈ 0; a
     // colour histogram scores background windows of similar colour well above α_mesh, so
@@ -184,6 +194,8 @@ impl Default for FilterTrackConfig {
             pf: ParticleFilterConfig::default(),
             phd: PhdConfig::default(),
             likelihood: TrackLikelihoodConfig::default(),
+            measurements: Measurements::Detections,
+            detections: DetectionLikelihoodConfig::default(),
             births: BirthSource::Detections,
             birth_particles_per_detection: 70,
             birth_spread_px: 4.0,
@@ -210,6 +222,9 @@ impl FilterTrackConfig {
             .map_err(|e| e.in_table("detector"))?;
         self.pf.validate().map_err(|e| e.in_table("pf"))?;
         self.phd.validate().map_err(|e| e.in_table("phd"))?;
+        self.detections
+            .validate()
+            .map_err(|e| e.in_table("detections"))?;
         crate::limits::at_most(
             self.likelihood.min_window_px,
             crate::limits::MAX_IMAGE_SIDE,

@@ -8,11 +8,15 @@
 //!   [`crate::likelihood::Likelihood`] or on point measurements ([`points`]).
 //! - [`config`] and [`tracker`]: PF or PHD over a detector's output with the colour or a
 //!   network likelihood, as a [`crate::track::Tracker`] (`roadtrack track --method pf|phd`).
+//! - [`detections`]: the detections themselves as measurements (`--likelihood detections`).
 //!
 //! Particles live in flat arrays ([`Particles`], struct of arrays): one `Vec<f64>` per state
 //! component, never one heap object per particle.
 
 pub mod config;
+#[cfg(test)]
+mod detection_tests;
+pub mod detections;
 pub mod motion;
 pub mod particle;
 pub mod phd;
@@ -22,6 +26,7 @@ pub mod tracker;
 
 pub use crate::geometry::SurveillanceRegion;
 pub use config::{FilterMethod, FilterTrackConfig};
+pub use detections::{BoxMeasurement, DetectionLikelihoodConfig, Measurements};
 pub use motion::{ConstantVelocity, VelocityNoise};
 pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
 pub use phd::{LabelUpdate, LabelledPhd, PhdConfig, PhdTracker};

@@ -8,6 +8,7 @@
 //! `Choice:` notes).
 
 use super::FilterStageTimes;
+use super::detections::{BoxMeasurement, DetectionLikelihoodConfig, assign_closest};
 use super::motion::ConstantVelocity;
 use super::resample::{ResamplingScheme, resample};
 use super::{Particles, SurveillanceRegion};
@@ -122,6 +123,26 @@ impl ParticleFilterConfig {
     }
 }
 
+/// `h` clamped to `[0, 1]`, 0 when not finite.
+fn finite_unit(h: f64) -> f64 {
+    if h.is_finite() {
+        h.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Equal-weight mean position of `p` and its variance per axis (after resampling the
+/// weights are equal).
+fn mean_and_variance(p: &Particles) -> (Point, Point) {
+    let n = p.len().max(1) as f64;
+    let mx = p.x.iter().sum::<f64>() / n;
+    let my = p.y.iter().sum::<f64>() / n;
+    let vx = p.x.iter().map(|x| (x - mx).powi(2)).sum::<f64>() / n;
+    let vy = p.y.iter().map(|y| (y - my).powi(2)).sum::<f64>() / n;
+    (Point::new(mx, my), Point::new(vx, vy))
+}
+
 /// Builds an object's own likelihood from the frame and detection that start it (e.g. a
 /// colour likelihood whose reference is the detection's histogram).
 pub type LikelihoodFactory =
@@ -142,6 +163,8 @@ struct Object {
     particles: Particles,
     rng: Rng,
     lost_frames: u32,
+    /// Frames with a detection (detection measurements only).
+    hits: u32,
     likelihood: Option<Box<dyn Likelihood>>,
     size_px: (f64, f64),
     class: ObjectClass,
@@ -248,35 +271,7 @@ impl ParticleFilterTracker {
 
         // Likelihood: one batch for a shared likelihood, one per object otherwise.
         let t0 = Instant::now();
-        match &mut self.source {
-            Source::Shared(lik) => {
-                lik.begin_frame(image)?;
-                self.positions.clear();
-                for o in &self.objects {
-                    let p = &o.particles;
-                    self.positions
-                        .extend(p.x.iter().zip(&p.y).map(|(&x, &y)| Point::new(x, y)));
-                }
-                self.h.clear();
-                self.h.resize(self.positions.len(), 0.0);
-                lik.evaluate(image, &self.positions, &mut self.h)?;
-                let mut k = 0;
-                for o in &mut self.objects {
-                    let n = o.particles.len();
-                    o.particles.h.copy_from_slice(&self.h[k..k + n]);
-                    k += n;
-                }
-            }
-            Source::PerObject(_) => {
-                for o in &mut self.objects {
-                    if let Some(lik) = o.likelihood.as_mut() {
-                        lik.begin_frame(image)?;
-                        o.particles.positions_into(&mut self.positions);
-                        lik.evaluate(image, &self.positions, &mut o.particles.h)?;
-                    }
-                }
-            }
-        }
+        self.evaluate_image(image)?;
         self.times.likelihood += t0.elapsed();
 
         // Weight (w ∝ h after equal-weight resampling), estimate, resample.
@@ -332,9 +327,166 @@ impl ParticleFilterTracker {
         }
         self.times.labels += t0.elapsed();
         self.times.steps += 1;
+        Ok(self.points(frame))
+    }
 
-        Ok(self
+    /// Advances by one frame with the detections as measurements
+    /// ([`super::detections`]): predict → each object takes the closest free detection
+    /// within [`DetectionLikelihoodConfig::pf_gate_sigmas`] of its prediction (one-to-one,
+    /// closest pairs first) → weights `(1 − p_D)·κ + p_D·N(z; x_i, σ²)` (times the image
+    /// likelihood when `with_image`; equal weights without a detection) → estimate →
+    /// resample → objects without a detection for more than
+    /// [`ParticleFilterConfig::max_lost_frames`] frames or outside the image end → every
+    /// detection no object took starts one. `detections[j]` is the source of
+    /// `measurements[j]`. Returns every object, sorted by id.
+    ///
+    /// # Errors
+    /// When a likelihood fails.
+    pub fn step_with_detections(
+        &mut self,
+        frame: &Frame,
+        detections: &[Detection],
+        measurements: &[BoxMeasurement],
+        model: &DetectionLikelihoodConfig,
+        with_image: bool,
+    ) -> Result<Vec<TrackPoint>> {
+        let image = &frame.image;
+        let rho = self.config.particles_per_object;
+        let t0 = Instant::now();
+        let motion = self.config.motion;
+        self.objects.par_iter_mut().for_each(|o| {
+            let p = &mut o.particles;
+            for i in 0..p.len() {
+                let mut s = [p.x[i], p.y[i], p.vx[i], p.vy[i]];
+                motion.propagate_one(&mut s, 1.0, &mut o.rng);
+                [p.x[i], p.y[i], p.vx[i], p.vy[i]] = s;
+            }
+        });
+        self.times.predict += t0.elapsed();
+
+        let t0 = Instant::now();
+        if with_image {
+            self.evaluate_image(image)?;
+        }
+        self.times.likelihood += t0.elapsed();
+
+        let t0 = Instant::now();
+        let predicted: Vec<(Point, Point)> = self
             .objects
+            .iter()
+            .map(|o| mean_and_variance(&o.particles))
+            .collect();
+        let assigned = assign_closest(&predicted, measurements, model.pf_gate_sigmas);
+        let (pd, kappa) = (
+            model.detection_prob,
+            model.clutter_per_frame
+                / (f64::from(image.width().max(1)) * f64::from(image.height().max(1))),
+        );
+        let cfg = &self.config;
+        self.objects
+            .par_iter_mut()
+            .zip(assigned.par_iter())
+            .for_each(|(o, a)| {
+                let p = &mut o.particles;
+                let z = a.map(|j| &measurements[j]);
+                for i in 0..p.len() {
+                    let img = if with_image { finite_unit(p.h[i]) } else { 1.0 };
+                    match z {
+                        Some(z) => {
+                            p.w[i] = ((1.0 - pd) * kappa + pd * z.density(p.x[i], p.y[i])) * img;
+                            p.h[i] = z.kernel(p.x[i], p.y[i]) * img;
+                        }
+                        None => {
+                            p.w[i] = 1.0;
+                            p.h[i] = 0.0;
+                        }
+                    }
+                }
+                if z.is_some() {
+                    o.lost_frames = 0;
+                    o.hits = o.hits.saturating_add(1);
+                } else if o.hits < model.pf_tentative_detections {
+                    // A tentative object does not coast.
+                    o.lost_frames = u32::MAX;
+                } else {
+                    o.lost_frames += 1;
+                }
+                if p.total_weight() <= 0.0 || !p.total_weight().is_finite() {
+                    p.w.iter_mut().for_each(|w| *w = 1.0);
+                }
+                if let Some(e) = p.weighted_mean(0..p.len()) {
+                    o.estimate = e;
+                }
+                let mut anc = Vec::with_capacity(rho);
+                resample(cfg.resampling, &p.w, rho, &mut o.rng, &mut anc);
+                if anc.len() == rho {
+                    p.select(&anc, 1.0 / rho as f64);
+                }
+            });
+        self.times.update += t0.elapsed();
+
+        let t0 = Instant::now();
+        let region = SurveillanceRegion::image(image.width(), image.height());
+        let max_lost = self.config.max_lost_frames;
+        let mut taken = vec![false; measurements.len()];
+        for (o, a) in self.objects.iter_mut().zip(&assigned) {
+            if let Some(j) = *a {
+                taken[j] = true;
+                // The detection's box and class describe the object from now on.
+                if let Some(size) = detections.get(j).and_then(|d| d.size_px) {
+                    o.size_px = size;
+                }
+            }
+        }
+        self.objects
+            .retain(|o| o.lost_frames <= max_lost && region.contains(o.estimate.0));
+        for (j, d) in detections.iter().enumerate() {
+            if !taken.get(j).copied().unwrap_or(true) {
+                self.start_object(image, d)?;
+            }
+        }
+        self.times.labels += t0.elapsed();
+        self.times.steps += 1;
+        Ok(self.points(frame))
+    }
+
+    /// The image likelihood of every object's particles into their `h`.
+    fn evaluate_image(&mut self, image: &RgbImage) -> Result<()> {
+        match &mut self.source {
+            Source::Shared(lik) => {
+                lik.begin_frame(image)?;
+                self.positions.clear();
+                for o in &self.objects {
+                    let p = &o.particles;
+                    self.positions
+                        .extend(p.x.iter().zip(&p.y).map(|(&x, &y)| Point::new(x, y)));
+                }
+                self.h.clear();
+                self.h.resize(self.positions.len(), 0.0);
+                lik.evaluate(image, &self.positions, &mut self.h)?;
+                let mut k = 0;
+                for o in &mut self.objects {
+                    let n = o.particles.len();
+                    o.particles.h.copy_from_slice(&self.h[k..k + n]);
+                    k += n;
+                }
+            }
+            Source::PerObject(_) => {
+                for o in &mut self.objects {
+                    if let Some(lik) = o.likelihood.as_mut() {
+                        lik.begin_frame(image)?;
+                        o.particles.positions_into(&mut self.positions);
+                        lik.evaluate(image, &self.positions, &mut o.particles.h)?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Every object as a track point, sorted by id.
+    fn points(&self, frame: &Frame) -> Vec<TrackPoint> {
+        self.objects
             .iter()
             .map(|o| TrackPoint {
                 frame: frame.index,
@@ -345,7 +497,7 @@ impl ParticleFilterTracker {
                 score: o.particles.h.iter().sum::<f64>() / o.particles.len().max(1) as f64,
                 ground: None,
             })
-            .collect())
+            .collect()
     }
 
     fn start_object(&mut self, image: &RgbImage, d: &Detection) -> Result<()> {
@@ -378,6 +530,7 @@ impl ParticleFilterTracker {
             particles,
             rng,
             lost_frames: 0,
+            hits: 1,
             likelihood,
             size_px: d
                 .size_px

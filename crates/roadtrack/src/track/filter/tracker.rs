@@ -15,6 +15,7 @@
 
 use super::config::{BirthSource, ColourReference, FilterMethod, FilterTrackConfig};
 use super::config::{LikelihoodKind, TrackLikelihoodConfig};
+use super::detections::Measurements;
 use super::particle::{LikelihoodFactory, ParticleFilterTracker};
 use super::phd::{FilterStageTimes, PhdTracker};
 use crate::detect::FrameDetections;
@@ -84,7 +85,8 @@ impl FilterTracker {
     /// by every object (PF and PHD). [`TrackLikelihoodConfig::kind`] still applies
     /// (`foreground` ignores the model; `colour_foreground` multiplies the model by the
     /// foreground fraction); the window and box sizes stay the median detection box of the
-    /// reference frames.
+    /// reference frames. A model with [`Measurements::Detections`] (the default) weighs
+    /// by the image instead ([`Measurements::Image`]): a network is an image likelihood.
     ///
     /// # Errors
     /// An invalid config.
@@ -95,12 +97,18 @@ impl FilterTracker {
         model: Option<Box<dyn Likelihood>>,
     ) -> Result<Self> {
         cfg.validate()?;
-        let shared = method == FilterMethod::Phd
-            || cfg.likelihood.reference == ColourReference::Shared
-            || model.is_some();
+        let mut cfg = cfg.clone();
+        if model.is_some() && cfg.measurements == Measurements::Detections {
+            cfg.measurements = Measurements::Image;
+        }
+        // With the detections alone nothing reads the image: no reference to wait for.
+        let shared = cfg.measurements.uses_image()
+            && (method == FilterMethod::Phd
+                || cfg.likelihood.reference == ColourReference::Shared
+                || model.is_some());
         Ok(Self {
             method,
-            cfg: cfg.clone(),
+            cfg,
             seed,
             shared,
             model,
@@ -159,7 +167,10 @@ impl FilterTracker {
 
 impl Tracker for FilterTracker {
     fn step(&mut self, frame: &Frame, detections: &FrameDetections) -> Result<Vec<FramePoints>> {
-        if self.cfg.likelihood.kind != LikelihoodKind::Colour && detections.foreground.is_none() {
+        if self.cfg.measurements.uses_image()
+            && self.cfg.likelihood.kind != LikelihoodKind::Colour
+            && detections.foreground.is_none()
+        {
             return Err(Error::Invalid(format!(
                 "frame {}: the {:?} likelihood needs a detector with a foreground mask",
                 frame.index, self.cfg.likelihood.kind
@@ -234,6 +245,10 @@ impl Runner {
         let (likelihood, window_px) = if shared {
             let (lik, win) = shared_likelihood(&lc, pending, &mask, model)?;
             (Some(lik), Some(win))
+        } else if !cfg.measurements.uses_image() {
+            // Never evaluated: the detections are the only measurements.
+            let none: Box<dyn Likelihood> = Box::new(|_: &RgbImage, _: Point| 1.0);
+            (Some(none), None)
         } else {
             (None, None)
         };
@@ -276,6 +291,9 @@ impl Runner {
                 let mut phd_cfg = cfg.phd.clone();
                 phd_cfg.object_width_px = default_size.0;
                 phd_cfg.object_height_px = default_size.1;
+                if cfg.measurements.uses_detections() {
+                    phd_cfg.merge_distance = cfg.detections.merge_distance_px;
+                }
                 let mut t = PhdTracker::new(phd_cfg, lik, seed)?;
                 t.set_grid_births(matches!(cfg.births, BirthSource::Grid | BirthSource::Both));
                 Filter::Phd(Box::new(t))
@@ -316,7 +334,34 @@ impl Runner {
             m.set(mask);
         }
         let cfg = &self.cfg;
+        let with_image = cfg.measurements.uses_image();
         let (mut points, expected, tracked) = match &mut self.filter {
+            Filter::Pf(t) if cfg.measurements.uses_detections() => {
+                let dets = finite(dets);
+                let z = cfg.detections.measurements(&dets);
+                let pts = t.step_with_detections(frame, &dets, &z, &cfg.detections, with_image)?;
+                let tracked: Vec<(u64, Point)> =
+                    pts.iter().map(|p| (p.id, p.bbox.centre())).collect();
+                let n = t.n_objects() as f64;
+                (pts, n, tracked)
+            }
+            Filter::Phd(t) if cfg.measurements.uses_detections() => {
+                let z = cfg.detections.measurements(&finite(dets));
+                let pts = t.step_with_detections(
+                    frame,
+                    &z,
+                    &cfg.detections.phd_model(),
+                    cfg.birth_particles_per_detection,
+                    with_image,
+                )?;
+                let tracked: Vec<(u64, Point)> = t.filter().map_or_else(Vec::new, |f| {
+                    f.all_estimates()
+                        .iter()
+                        .map(|e| (u64::from(e.label), e.pos))
+                        .collect()
+                });
+                (pts, t.expected_count(), tracked)
+            }
             Filter::Pf(t) => {
                 // Choice: a detection starts an object only when no object's last estimate
                 // lies within half its box's longer side (at least the PF's own gate), so a
@@ -402,6 +447,14 @@ impl Runner {
         };
         Ok((points, count))
     }
+}
+
+/// The detections whose centre is finite (the measurements).
+fn finite(dets: &[Detection]) -> Vec<Detection> {
+    dets.iter()
+        .filter(|d| d.pos_px.x.is_finite() && d.pos_px.y.is_finite())
+        .cloned()
+        .collect()
 }
 
 /// The shared likelihood: `model` when given, else the colour likelihood with reference =
@@ -534,7 +587,10 @@ mod tests {
     #[test]
     fn phd_weight_sum_tracks_the_true_count_on_a_simulated_scene() -> Result<()> {
         let (frames, truth) = three_cars(30)?;
-        let cfg = FilterTrackConfig::default();
+        let cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         let (_, counts) = run(FilterMethod::Phd, &frames, &cfg)?;
         assert_eq!(counts.len(), frames.len());
         let mut errors = Vec::new();
@@ -566,7 +622,10 @@ mod tests {
             ..Default::default()
         };
         sim.crossing.inflow_veh_per_h_per_direction = 0.0;
-        let mut cfg = FilterTrackConfig::default();
+        let mut cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         cfg.phd.motion = crate::track::filter::motion::ConstantVelocity::proportional(0.2, 1.0);
         cfg.phd.class = ObjectClass::Pedestrian;
         cfg.phd.label_update = update;
@@ -649,7 +708,10 @@ mod tests {
     #[test]
     fn pf_follows_each_car() -> Result<()> {
         let (frames, truth) = three_cars(24)?;
-        let cfg = FilterTrackConfig::default();
+        let cfg = FilterTrackConfig {
+            measurements: Measurements::Image,
+            ..Default::default()
+        };
         let (in_memory, _) = run(FilterMethod::Pf, &frames, &cfg)?;
         assert!(!in_memory.is_empty());
         // Reported centres lie on a car: inside a truth box of the frame. (The colour

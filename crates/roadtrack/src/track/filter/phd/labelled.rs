@@ -76,13 +76,13 @@ impl LabelledPhd {
         self.particles.total_weight()
     }
 
-    fn new_label(&mut self) -> u32 {
+    pub(super) fn new_label(&mut self) -> u32 {
         let l = self.next_label;
         self.next_label += 1;
         l
     }
 
-    fn gaussian(&mut self) -> f64 {
+    pub(super) fn gaussian(&mut self) -> f64 {
         StandardNormal.sample(&mut self.rng)
     }
 
@@ -226,7 +226,7 @@ impl LabelledPhd {
     // point), so a large `birth_particles_per_detection` or a crowded frame cannot grow
     // the set without bound before resampling; the particle count stays below twice
     // `max_particles` plus one per point. Below the cap nothing changes.
-    fn births_per_point(&self, per_point: usize, n_points: usize) -> usize {
+    pub(super) fn births_per_point(&self, per_point: usize, n_points: usize) -> usize {
         let max = self.config.max_particles;
         if n_points.saturating_mul(per_point) <= max {
             per_point
@@ -428,7 +428,7 @@ impl LabelledPhd {
     /// `r' = r(1 − Δ)/(1 − r + r(1 − Δ))` and `ŵ_i = w̃_i f_i · r' / Σ_{i∈ℓ} w̃_i f_i`
     /// (the Bernoulli filter's update; Ristic, Vo, Vo & Farina, "A tutorial on Bernoulli
     /// filters", Proc. IEEE 2013).
-    fn bernoulli_labels(&mut self, factor: &[f64]) {
+    pub(super) fn bernoulli_labels(&mut self, factor: &[f64]) {
         let p = &mut self.particles;
         // label → (W̃, Σ w̃ f), in particle order (deterministic).
         let mut sums: BTreeMap<u32, (f64, f64)> = BTreeMap::new();
@@ -705,7 +705,7 @@ impl LabelledPhd {
         }
     }
 
-    fn rule_merge(&mut self) {
+    pub(super) fn rule_merge(&mut self) {
         let beta = self.config.merge_distance;
         let centres: Vec<(u32, Point)> = self
             .label_members()

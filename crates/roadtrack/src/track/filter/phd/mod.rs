@@ -19,9 +19,11 @@
 //! measurements.
 //!
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
+//! `detections.rs` (step d with detections as measurements),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod config;
+mod detections;
 mod labelled;
 #[cfg(test)]
 mod tests;
@@ -29,6 +31,7 @@ mod tracker;
 
 pub use super::FilterStageTimes;
 pub use config::{LabelUpdate, PhdConfig};
+pub use detections::{BoxMeasurement, DetectionModel};
 pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;

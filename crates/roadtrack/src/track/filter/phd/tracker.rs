@@ -1,7 +1,7 @@
 //! [`PhdTracker`]: the labelled SMC-PHD filter on frames with an image likelihood.
 
 use super::super::SurveillanceRegion;
-use super::{FilterStageTimes, LabelledPhd, PhdConfig};
+use super::{BoxMeasurement, DetectionModel, FilterStageTimes, LabelledPhd, PhdConfig};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::geometry::{BBox, Point};
@@ -121,6 +121,130 @@ impl PhdTracker {
         self.step_with_births(frame, &[], 0, 0.0)
     }
 
+    /// One frame with the detections as measurements ([`LabelledPhd::update_detections`]):
+    /// predict → a labelled birth at each detection farther than
+    /// [`DetectionModel::birth_gate_sigmas`] from every label's prediction
+    /// ([`LabelledPhd::add_labelled_births`], `per_point` particles each) → the image
+    /// likelihood when `with_image` → update → border-exit and merge rules
+    /// ([`LabelledPhd::update_labels_detections`]) → estimates → resampling. Returns the
+    /// reported labels sorted by id.
+    ///
+    /// # Errors
+    /// When the frame size changes or the likelihood fails.
+    pub fn step_with_detections(
+        &mut self,
+        frame: &Frame,
+        measurements: &[BoxMeasurement],
+        model: &DetectionModel,
+        per_point: usize,
+        with_image: bool,
+    ) -> Result<Vec<TrackPoint>> {
+        let (w, h) = frame.size();
+        let t0 = Instant::now();
+        if with_image {
+            self.likelihood.begin_frame(&frame.image)?;
+        }
+        self.times.likelihood += t0.elapsed();
+        let t0 = Instant::now();
+        match self.filter {
+            None => {
+                self.filter = Some(LabelledPhd::new(
+                    self.config.clone(),
+                    SurveillanceRegion::image(w, h),
+                    self.seed,
+                )?);
+                self.frame_size = (w, h);
+            }
+            Some(ref mut f) => {
+                if (w, h) != self.frame_size {
+                    return Err(Error::FrameSize {
+                        frame: frame.index,
+                        got: (w, h),
+                        expected: self.frame_size,
+                    });
+                }
+                f.predict(1.0);
+            }
+        }
+        let Some(filter) = self.filter.as_mut() else {
+            return Ok(Vec::new());
+        };
+        // Births at the detections no label explains: none within `birth_gate_sigmas` of
+        // the detection's σ from a label's mean after prediction.
+        let predicted: Vec<Point> = filter.all_estimates().iter().map(|e| e.pos).collect();
+        let gate2 = model.birth_gate_sigmas.powi(2);
+        let free: Vec<BoxMeasurement> = measurements
+            .iter()
+            .filter(|m| !predicted.iter().any(|p| mahalanobis2(m, *p) <= gate2))
+            .copied()
+            .collect();
+        filter.add_labelled_births(&free, per_point);
+        self.times.predict += t0.elapsed();
+
+        let t0 = Instant::now();
+        let image_h = if with_image {
+            filter.particles().positions_into(&mut self.positions);
+            self.h.clear();
+            self.h.resize(self.positions.len(), 0.0);
+            self.likelihood
+                .evaluate(&frame.image, &self.positions, &mut self.h)?;
+            for v in &mut self.h {
+                *v = if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+            }
+            Some(&self.h[..])
+        } else {
+            None
+        };
+        self.times.likelihood += t0.elapsed();
+        let t0 = Instant::now();
+        filter.update_detections(
+            measurements,
+            model.detection_prob,
+            model.clutter_per_frame,
+            model.label_update,
+            image_h,
+        );
+        self.times.update += t0.elapsed();
+        let t0 = Instant::now();
+        filter.update_labels_detections();
+        self.times.labels += t0.elapsed();
+        let t0 = Instant::now();
+        let out = self.points(frame);
+        if let Some(filter) = self.filter.as_mut() {
+            filter.resample();
+        }
+        self.times.resample += t0.elapsed();
+        self.times.steps += 1;
+        Ok(out)
+    }
+
+    /// The reported labels of the filter as track points, sorted by id.
+    fn points(&self, frame: &Frame) -> Vec<TrackPoint> {
+        self.filter.as_ref().map_or_else(Vec::new, |filter| {
+            filter
+                .estimates()
+                .into_iter()
+                .map(|e| TrackPoint {
+                    frame: frame.index,
+                    time_s: frame.time_s,
+                    id: u64::from(e.label),
+                    class: self.config.class.clone(),
+                    bbox: BBox::from_centre(
+                        e.pos,
+                        self.config.object_width_px,
+                        self.config.object_height_px,
+                    ),
+                    score: e.weight.min(1.0),
+                    ground: None,
+                })
+                .collect()
+        })
+    }
+
     /// [`PhdTracker::step`] with detection births: `per_point` birth particles around each
     /// of `births` ([`LabelledPhd::add_births_at`]), in addition to the grid births when
     /// they are on.
@@ -227,4 +351,9 @@ impl PhdTracker {
         self.times.steps += 1;
         Ok(out)
     }
+}
+
+/// Squared Mahalanobis distance of `p` from the measurement's centre.
+fn mahalanobis2(m: &BoxMeasurement, p: Point) -> f64 {
+    ((p.x - m.pos.x) / m.sigma.x).powi(2) + ((p.y - m.pos.y) / m.sigma.y).powi(2)
 }

@@ -1,0 +1,324 @@
+//! Tests of the filters with detections as measurements (issue 14): the update against a
+//! naive reference, the PHD's expected count against the truth on simulated scenes, and
+//! determinism at 1 and 2 threads.
+
+use super::detections::{BoxMeasurement, Measurements};
+use super::phd::{LabelUpdate, LabelledPhd, PhdConfig};
+use super::{FilterMethod, FilterTrackConfig, FilterTracker, SurveillanceRegion};
+use crate::detect::FrameDetections;
+use crate::error::{Error, Result};
+use crate::geometry::Point;
+use crate::track::{FramePoints, Tracker};
+use roadtrack_sim::{SceneKind, SimConfig, SimStep, Simulation, ViewKind};
+
+/// `p_D · N(z; (x, y), diag(σ_x², σ_y²))` written out.
+fn naive_g(pd: f64, z: &BoxMeasurement, x: f64, y: f64) -> f64 {
+    let (sx, sy) = (z.sigma.x, z.sigma.y);
+    let e = (x - z.pos.x).powi(2) / (2.0 * sx * sx) + (y - z.pos.y).powi(2) / (2.0 * sy * sy);
+    pd * (-e).exp() / (2.0 * std::f64::consts::PI * sx * sy)
+}
+
+/// A filter over 100 × 100 with particles `(x, y, w, label)`.
+fn filter_with(parts: &[(f64, f64, f64, u32)]) -> Result<LabelledPhd> {
+    let mut f = LabelledPhd::new(
+        PhdConfig::default(),
+        SurveillanceRegion::new(0.0, 0.0, 100.0, 100.0),
+        1,
+    )?;
+    for &(x, y, w, l) in parts {
+        f.particles_mut()
+            .push(Point::new(x, y), Point::default(), w, l);
+    }
+    Ok(f)
+}
+
+#[test]
+fn the_detection_update_equals_a_naive_reference() -> Result<()> {
+    let parts = [
+        (10.0, 10.0, 0.3, 1),
+        (12.0, 9.0, 0.4, 1),
+        (30.0, 31.0, 0.2, 2),
+        (33.0, 30.0, 0.5, 2),
+        (11.0, 11.0, 0.01, 0),
+        (60.0, 60.0, 0.02, 0),
+        (31.0, 29.0, 0.03, 0),
+    ];
+    let z = [
+        BoxMeasurement {
+            pos: Point::new(11.0, 10.0),
+            sigma: Point::new(2.0, 3.0),
+        },
+        BoxMeasurement {
+            pos: Point::new(31.5, 30.0),
+            sigma: Point::new(1.5, 4.0),
+        },
+        BoxMeasurement {
+            pos: Point::new(80.0, 20.0),
+            sigma: Point::new(2.0, 2.0),
+        },
+    ];
+    let (pd, clutter) = (0.9, 2.0);
+    let kappa = clutter / 100.0 / 100.0;
+    let g = |i: usize, j: usize| naive_g(pd, &z[j], parts[i].0, parts[i].1);
+    let c: Vec<f64> = (0..z.len())
+        .map(|j| (0..parts.len()).map(|i| g(i, j) * parts[i].2).sum())
+        .collect();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-300);
+
+    // The PHD form for every particle (Vo, Singh & Doucet 2003).
+    let mut f = filter_with(&parts)?;
+    f.update_detections(&z, pd, clutter, LabelUpdate::Phd, None);
+    for (i, p) in parts.iter().enumerate() {
+        let psi: f64 = (0..z.len()).map(|j| g(i, j) / (kappa + c[j])).sum();
+        let want = ((1.0 - pd) + psi) * p.2;
+        let got = f.particles().w[i];
+        assert!(close(got, want), "particle {i}: {got} against {want}");
+        // h: the best unit-peak kernel.
+        let h = z
+            .iter()
+            .map(|zj| {
+                naive_g(1.0, zj, p.0, p.1) * 2.0 * std::f64::consts::PI * zj.sigma.x * zj.sigma.y
+            })
+            .fold(0.0f64, f64::max);
+        assert!(close(f.particles().h[i], h));
+    }
+
+    // Bernoulli labels: each label's existence by the Bernoulli filter's rule, the
+    // unlabelled particles by the PHD form.
+    let mut f = filter_with(&parts)?;
+    f.update_detections(&z, pd, clutter, LabelUpdate::Bernoulli, None);
+    for label in [1u32, 2] {
+        let idx: Vec<usize> = (0..parts.len()).filter(|&i| parts[i].3 == label).collect();
+        let own: Vec<f64> = (0..z.len())
+            .map(|j| idx.iter().map(|&i| g(i, j) * parts[i].2).sum())
+            .collect();
+        let fi: Vec<f64> = idx
+            .iter()
+            .map(|&i| {
+                (1.0 - pd)
+                    + (0..z.len())
+                        .map(|j| g(i, j) / (kappa + c[j] - own[j]))
+                        .sum::<f64>()
+            })
+            .collect();
+        let w: f64 = idx.iter().map(|&i| parts[i].2).sum();
+        let s: f64 = idx.iter().zip(&fi).map(|(&i, f)| parts[i].2 * f).sum();
+        let r = w.min(1.0);
+        let r_post = r * (s / w) / (1.0 - r + r * (s / w));
+        for (k, &i) in idx.iter().enumerate() {
+            let want = parts[i].2 * fi[k] * r_post / s;
+            let got = f.particles().w[i];
+            assert!(
+                close(got, want),
+                "label {label}, particle {i}: {got} against {want}"
+            );
+        }
+    }
+    for i in (0..parts.len()).filter(|&i| parts[i].3 == 0) {
+        let psi: f64 = (0..z.len()).map(|j| g(i, j) / (kappa + c[j])).sum();
+        assert!(close(f.particles().w[i], ((1.0 - pd) + psi) * parts[i].2));
+    }
+    Ok(())
+}
+
+#[test]
+fn a_labelled_birth_gets_the_weight_bayes_gives_a_first_detection() -> Result<()> {
+    // μ_Γ = 2 births per frame over the region, 1 false detection per frame, p_D = 0.9:
+    // a detection far from every label is an object with probability
+    // μ_Γ·p_D / (λ_c + μ_Γ·p_D) = 1.8 / 2.8 ≈ 0.64.
+    let mut f = filter_with(&[])?;
+    let z = [BoxMeasurement {
+        pos: Point::new(50.0, 50.0),
+        sigma: Point::new(2.0, 2.0),
+    }];
+    let labels = f.add_labelled_births(&z, 500);
+    assert_eq!(labels.len(), 1);
+    f.update_detections(&z, 0.9, 1.0, LabelUpdate::Bernoulli, None);
+    let w = f.expected_count();
+    assert!((w - 1.8 / 2.8).abs() < 0.05, "birth weight {w}");
+    Ok(())
+}
+
+/// The simulator's frames with its public detections (`det/det.txt`).
+fn scene(scene: SceneKind, view: ViewKind, frames: u32, seed: u64) -> Result<Vec<SimStep>> {
+    let cfg = SimConfig {
+        scene,
+        view,
+        frames,
+        ..Default::default()
+    };
+    Simulation::new(&cfg, seed)?.collect()
+}
+
+/// Per frame: Σw, the true number of objects the detector can see (visibility ≥ its
+/// `min_visibility`, 0.3), and of objects in view at all (visibility > 0).
+type Counts = Vec<(f64, f64, f64)>;
+
+/// Runs `method` with detections as measurements over `steps`: the [`Counts`] (the PF's
+/// object count in place of Σw) and the points.
+fn run_counts(
+    method: FilterMethod,
+    cfg: &FilterTrackConfig,
+    steps: &[SimStep],
+    seed: u64,
+) -> Result<(Counts, Vec<FramePoints>)> {
+    let mut tracker = FilterTracker::new(method, cfg, seed, None)?;
+    tracker.record_counts();
+    let mut points = Vec::new();
+    for s in steps {
+        let d = FrameDetections {
+            detections: s.detections.clone(),
+            foreground: None,
+        };
+        points.extend(tracker.step(&s.frame, &d)?);
+    }
+    points.extend(tracker.finish()?);
+    let counts = tracker
+        .counts()
+        .iter()
+        .zip(steps)
+        .map(|(c, s)| {
+            let seen = s.truth.iter().filter(|t| t.visibility >= 0.3).count();
+            let in_view = s.truth.iter().filter(|t| t.visibility > 0.0).count();
+            (c.expected, seen as f64, in_view as f64)
+        })
+        .collect();
+    Ok((counts, points))
+}
+
+/// Mean |Σw − true count| after `burn_in` frames, the truth of objects the detector can
+/// see (`in_view`: of objects in view at all).
+fn count_mae(counts: &[(f64, f64, f64)], burn_in: usize, in_view: bool) -> f64 {
+    let tail = &counts[burn_in.min(counts.len())..];
+    tail.iter()
+        .map(|&(e, seen, all)| (e - if in_view { all } else { seen }).abs())
+        .sum::<f64>()
+        / tail.len().max(1) as f64
+}
+
+#[test]
+fn the_detection_phd_count_follows_the_truth_on_the_aerial_road() -> Result<()> {
+    // After one second (10 frames) of births from an empty start.
+    let steps = scene(SceneKind::Road, ViewKind::Aerial, 60, 1)?;
+    let cfg = FilterTrackConfig::default();
+    assert_eq!(cfg.measurements, Measurements::Detections);
+    let (counts, points) = run_counts(FilterMethod::Phd, &cfg, &steps, 1)?;
+    assert_eq!(counts.len(), steps.len());
+    let mae = count_mae(&counts, 10, false);
+    assert!(mae <= 0.5, "count MAE {mae:.2}: {counts:?}");
+    assert!(!points.is_empty());
+    Ok(())
+}
+
+#[test]
+fn the_detection_phd_count_is_far_closer_to_the_truth_than_the_image_form_on_the_crossing()
+-> Result<()> {
+    let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 40, 1)?;
+    let cfg = FilterTrackConfig::default();
+    let (counts, _) = run_counts(FilterMethod::Phd, &cfg, &steps, 1)?;
+    let mae = count_mae(&counts, 10, false);
+    // 26 people in a crowd: the issue's 0.5 is not reached here (1.13 over 300 frames and
+    // three seeds, docs/EXPERIMENTS.md), but the count no longer runs below the truth.
+    assert!(mae <= 1.6, "count MAE {mae:.2}: {counts:?}");
+    let image = FilterTrackConfig {
+        measurements: Measurements::Image,
+        ..cfg.clone()
+    };
+    let (image_counts, _) = run_counts(FilterMethod::Phd, &image, &steps, 1)?;
+    let image_mae = count_mae(&image_counts, 10, false);
+    assert!(
+        image_mae > 3.0 * mae,
+        "image form {image_mae:.2} against {mae:.2}"
+    );
+    Ok(())
+}
+
+#[test]
+fn the_filters_with_detections_are_the_same_at_1_and_2_threads() -> Result<()> {
+    let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
+    for method in [FilterMethod::Pf, FilterMethod::Phd] {
+        for measurements in [Measurements::Detections, Measurements::DetectionsAndImage] {
+            let cfg = FilterTrackConfig {
+                measurements,
+                ..Default::default()
+            };
+            let go = |threads: usize| -> Result<(Counts, Vec<FramePoints>)> {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .map_err(|e| Error::Invalid(e.to_string()))?
+                    .install(|| run_counts(method, &cfg, &steps, 5))
+            };
+            let (one, two) = (go(1)?, go(2)?);
+            assert!(!one.1.iter().all(|f| f.points.is_empty()));
+            assert_eq!(one, two, "{method:?} {measurements:?}");
+        }
+    }
+    Ok(())
+}
+
+/// `configs/filters-pedestrians.toml`, as loaded by `track --config`.
+fn pedestrian_config() -> Result<FilterTrackConfig> {
+    let path = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/filters-pedestrians.toml"
+    ));
+    FilterTrackConfig::from_toml_file(path)
+}
+
+#[test]
+fn the_committed_pedestrian_config_is_valid_and_keeps_the_detection_likelihood() -> Result<()> {
+    let cfg = pedestrian_config()?;
+    assert_eq!(cfg.measurements, Measurements::Detections);
+    assert_eq!(
+        cfg.pf.motion,
+        super::ConstantVelocity::proportional(0.2, 0.5),
+        "the paper's pedestrian model"
+    );
+    assert_eq!(cfg.phd.motion, cfg.pf.motion);
+    assert_ne!(cfg, FilterTrackConfig::default());
+    Ok(())
+}
+
+/// Count MAE of the detection PHD per scene, seeds 1–3, 300 frames (docs/EXPERIMENTS.md
+/// "Filters with detections as measurements"). Run with
+/// `cargo test -p roadtrack --lib detection_count_experiment -- --ignored --nocapture`.
+#[test]
+#[ignore = "experiment, several minutes"]
+fn detection_count_experiment() -> Result<()> {
+    let pedestrians = pedestrian_config()?;
+    for (scene_kind, view) in [
+        (SceneKind::Crossing, ViewKind::Oblique),
+        (SceneKind::Road, ViewKind::Aerial),
+        (SceneKind::Intersection, ViewKind::Oblique),
+    ] {
+        let mut sure = pedestrians.clone();
+        sure.detections.detection_prob = 0.95;
+        for (name, cfg) in [
+            ("defaults", FilterTrackConfig::default()),
+            ("filters-pedestrians.toml", pedestrians.clone()),
+            ("filters-pedestrians.toml, p_D 0.95", sure),
+        ] {
+            let mut line = Vec::new();
+            let (mut mae, mut mae_all, mut truth, mut sum) = (0.0, 0.0, 0.0, 0.0);
+            for seed in 1..=3 {
+                let steps = scene(scene_kind, view, 300, seed)?;
+                let (counts, _) = run_counts(FilterMethod::Phd, &cfg, &steps, seed)?;
+                let m = count_mae(&counts, 0, false);
+                let n = counts.len() as f64;
+                let t = counts.iter().map(|c| c.1).sum::<f64>() / n;
+                let e = counts.iter().map(|c| c.0).sum::<f64>() / n;
+                line.push(format!("{t:.2} / {e:.2} / {m:.2}"));
+                mae += m / 3.0;
+                mae_all += count_mae(&counts, 0, true) / 3.0;
+                truth += t / 3.0;
+                sum += e / 3.0;
+            }
+            println!(
+                "{scene_kind:?}/{view:?} {name}: mean true {truth:.2}, mean Σw {sum:.2}, count MAE {mae:.2} (against objects in view at all {mae_all:.2}); per seed (true / Σw / MAE) {}",
+                line.join("; ")
+            );
+        }
+    }
+    Ok(())
+}
