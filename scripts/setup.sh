@@ -14,7 +14,8 @@
 set -euo pipefail
 
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
-DETECTOR_STEPS="${DETECTOR_STEPS:-4000}"
+DETECTOR_STEPS="${DETECTOR_STEPS:-3000}"
+DETECTOR_STOP_AFTER="${DETECTOR_STOP_AFTER:-1300}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
@@ -42,7 +43,8 @@ PY
     echo "setup: training the learned detector ($DETECTOR_STEPS steps; see docs/DETECTION.md)…" >&2
     mkdir -p "$root/models"
     (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
-      train --detector --steps "$DETECTOR_STEPS" --seed 0 -o models/detector.onnx)
+      train --detector --steps "$DETECTOR_STEPS" --stop-after "$DETECTOR_STOP_AFTER" --seed 0 \
+      -o models/detector.onnx)
   fi
   echo "setup: learned detector at $root/models/detector.onnx" >&2
   shift
