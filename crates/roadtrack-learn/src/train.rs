@@ -17,7 +17,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use roadtrack::error::{Error, Result};
 
-use crate::arch::{CLASSES, CenterNetShape, CenterNetWeights, Preprocessing, STRIDE};
+use crate::arch::{CenterNetShape, CenterNetWeights, Preprocessing, STRIDE};
 use crate::data::{DataConfig, Sample, TrainFrame, make_sample, render_episode};
 use crate::net::{CenterNet, Outputs};
 
@@ -89,17 +89,13 @@ impl TrainConfig {
             );
         }
         let c = self.data.crop;
-        if c < 32 || c > 1024 || c % 16 != 0 {
+        if !(32..=1024).contains(&c) || !c.is_multiple_of(16) {
             return bad(
                 "crop",
                 format!("must be a multiple of 16 in 32–1024, got {c}"),
             );
         }
-        if self.data.width < 32
-            || self.data.height < 32
-            || self.data.width > 4096
-            || self.data.height > 4096
-        {
+        if !(32..=4096).contains(&self.data.width) || !(32..=4096).contains(&self.data.height) {
             return bad("width/height", "must be 32–4096 px".into());
         }
         if self.pool_frames == 0 || self.refresh_every == 0 || self.data.frames_per_episode == 0 {
@@ -226,7 +222,6 @@ impl Batch {
 
     fn target_dims(&self) -> [usize; 4] {
         let g = self.crop / STRIDE;
-        debug_assert_eq!(CLASSES, 4);
         [self.n, 4, g, g]
     }
 
@@ -289,7 +284,7 @@ pub fn train(
             let mut weights = None;
             let stop = cfg.stop_after.unwrap_or(cfg.steps).min(cfg.steps);
             for step in 0..stop {
-                if step > 0 && step % cfg.refresh_every == 0 {
+                if step > 0 && step.is_multiple_of(cfg.refresh_every) {
                     let fresh = recv()?;
                     let n = fresh.len().min(pool.len());
                     pool.drain(..n);
@@ -332,7 +327,7 @@ pub fn train(
                 }
                 progress(Progress::Step(loss))?;
                 let last = step + 1 == stop;
-                if last || (checkpoint_every > 0 && (step + 1) % checkpoint_every == 0) {
+                if last || (checkpoint_every > 0 && (step + 1).is_multiple_of(checkpoint_every)) {
                     let w = model.weights(&cfg.shape, prep);
                     progress(Progress::Checkpoint {
                         step: step + 1,

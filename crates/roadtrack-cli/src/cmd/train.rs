@@ -115,6 +115,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if args.detector {
         return super::train_detector::run(&args, ui);
     }
+    super::train_detector::reject_detector_flags(&args.detector_args)?;
     bail!(NO_CNN)
 }
 

@@ -248,7 +248,11 @@ impl CenterNetDetector {
     /// # Errors
     /// Sides that are not multiples of 16; the model fails to run.
     pub fn forward(&self, input: Vec<f32>, h: usize, w: usize) -> Result<(Vec<f32>, Vec<f32>)> {
-        if h % INPUT_MULTIPLE != 0 || w % INPUT_MULTIPLE != 0 || h == 0 || w == 0 {
+        if !h.is_multiple_of(INPUT_MULTIPLE)
+            || !w.is_multiple_of(INPUT_MULTIPLE)
+            || h == 0
+            || w == 0
+        {
             return Err(Error::Invalid(format!(
                 "detector input {h} × {w}: sides must be positive multiples of {INPUT_MULTIPLE}"
             )));
