@@ -1,5 +1,6 @@
 //! `--detector cnn` (the learned detector, models/detector.onnx) and `train --detector` on
 //! the command line.
+#![cfg(feature = "cnn")]
 
 mod common;
 use common::{bin, fixture, stderr};
@@ -15,7 +16,6 @@ fn shipped_model() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/detector.onnx")
 }
 
-#[cfg(feature = "cnn")]
 #[test]
 fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
     for model in [
@@ -55,7 +55,6 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
-#[cfg(feature = "cnn")]
 #[test]
 fn detect_with_the_shipped_model_writes_classified_boxes() {
     let dir = tempfile::tempdir().expect("tempdir");

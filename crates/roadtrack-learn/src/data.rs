@@ -134,10 +134,8 @@ pub fn corrupt(image: &mut RgbImage, rng: &mut impl rand::Rng) -> Result<()> {
     let g: [f64; 3] = std::array::from_fn(|_| gain * scale(rng, 0.9, 1.1));
     let offset = scale(rng, -20.0, 20.0);
     for p in image.pixels_mut() {
-        for c in 0..3 {
-            p.0[c] = (f64::from(p.0[c]) * g[c] + offset)
-                .round()
-                .clamp(0.0, 255.0) as u8;
+        for (v, gc) in p.0.iter_mut().zip(g) {
+            *v = (f64::from(*v) * gc + offset).round().clamp(0.0, 255.0) as u8;
         }
     }
     if rng.random_bool(0.3) {
@@ -353,10 +351,10 @@ pub fn make_sample(
     }
     let mut neg_weight = vec![0.0f32; CLASSES * plane];
     for k in 0..CLASSES {
-        for i in 0..plane {
+        for (i, keep) in ignore.iter().enumerate() {
             let j = k * plane + i;
             if pos[j] == 0.0 {
-                neg_weight[j] = (1.0 - heat[j]).powi(4) * ignore[i];
+                neg_weight[j] = (1.0 - heat[j]).powi(4) * keep;
             }
         }
     }

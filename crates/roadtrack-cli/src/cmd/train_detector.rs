@@ -161,7 +161,7 @@ pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
                         l.step, l.learning_rate, l.heat, l.boxes, l.total
                     )
                     .and_then(|_| w.flush())
-                    .map_err(|e| roadtrack::Error::io(path, e))?;
+                    .map_err(|e| roadtrack::Error::io(path.as_path(), e))?;
                 }
                 bar.suspend(|| {
                     ui.detail(format!(
