@@ -6,7 +6,11 @@ suppression, hold or splitting), as it is by default, and with region splitting
 
     python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
         --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
-        [--views aerial,oblique]
+        [--views aerial,oblique] [--cnn-model models/detector.onnx]
+
+With --cnn-model, the learned detector (`--detector cnn`) gets a row too, and a second
+table gives its recall and precision for vehicles and pedestrians separately (precision
+over the detections it labels vehicle or pedestrian; matching stays class-agnostic).
 
 Not part of the test suite; needs `pip install opencv-python-headless numpy`.
 
@@ -24,8 +28,11 @@ import os
 import subprocess
 from collections import defaultdict
 
-import cv2
-import numpy as np
+try:
+    import cv2
+    import numpy as np
+except ImportError:  # --only-cnn needs neither
+    cv2 = np = None
 
 OLD_CONFIG = """[background]
 startup = "median"
@@ -70,13 +77,49 @@ def read_stopped(seq):
     return stopped, arrived
 
 
-def read_ours(path):
+def read_ours(path, with_class=False):
     dets = defaultdict(list)
     with open(path) as f:
         for row in csv.DictReader(f):
             x, y, w, h = (float(row[k]) for k in "xywh")
-            dets[int(row["frame"])].append((x - w / 2, y - h / 2, w, h))
+            box = (x - w / 2, y - h / 2, w, h)
+            dets[int(row["frame"])].append((box, row.get("class", "")) if with_class else box)
     return dets
+
+
+def score_groups(gt, dets, n_frames):
+    """Recall (visibility ≥ 0.5) and precision for vehicles and pedestrians: greedy
+    class-agnostic matching at IoU 0.5; a detection counts for the group of its class."""
+    hit, tot, det_n, det_ok = (defaultdict(int) for _ in range(4))
+    for frame in range(1, n_frames + 1):
+        g = gt.get(frame, [])
+        d = dets.get(frame, [])
+        pairs = sorted(
+            ((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g)
+             for j, (db, _) in enumerate(d)),
+            reverse=True,
+        )
+        used_g, used_d = set(), set()
+        for v, i, j in pairs:
+            if v < 0.5:
+                break
+            if i in used_g or j in used_d:
+                continue
+            used_g.add(i)
+            used_d.add(j)
+        for i, (_, _, cls, vis) in enumerate(g):
+            if vis < 0.5:
+                continue
+            k = "ped" if cls == 1 else "veh"
+            tot[k] += 1
+            hit[k] += i in used_g
+        for j, (_, c) in enumerate(d):
+            k = "ped" if c == "pedestrian" else "veh"
+            det_n[k] += 1
+            det_ok[k] += j in used_d
+    rec = {k: hit[k] / tot[k] for k in tot if tot[k]}
+    prec = {k: det_ok[k] / det_n[k] for k in det_n if det_n[k]}
+    return rec, prec, tot
 
 
 def mog2(seq, n_frames):
@@ -158,12 +201,16 @@ def main():
     ap.add_argument("--work", default="/tmp/detcmp")
     ap.add_argument("--scenes", default="road,intersection,crossing")
     ap.add_argument("--views", default="aerial,oblique")
+    ap.add_argument("--cnn-model", default=None)
+    ap.add_argument("--only-cnn", action="store_true",
+                    help="only the learned detector's rows (no background detectors, no OpenCV)")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     old_cfg = f"{a.work}/old.toml"
     with open(old_cfg, "w") as f:
         f.write(OLD_CONFIG)
     cols = ["all", "car", "lorry/bus", "moto", "ped", "stopped", "arrived"]
+    groups = []
     print("| scene | view | detector | " + " | ".join(f"R {c}" for c in cols) + " | P |")
     print("| --- | --- | --- | " + " | ".join("---:" for _ in cols) + " | ---: |")
     for scene in a.scenes.split(","):
@@ -176,7 +223,7 @@ def main():
             gt = read_gt(seq)
             stopped = read_stopped(seq)
             runs = {}
-            for name, extra in [
+            for name, extra in [] if a.only_cnn else [
                 ("median (old)", ["--config", old_cfg]),
                 ("default", []),
                 ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
@@ -184,7 +231,14 @@ def main():
                 out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
                 runs[name] = read_ours(out)
-            runs["OpenCV MOG2 + contours"] = mog2(seq, a.frames)
+            if a.cnn_model:
+                out = f"{seq}/det_cnn.csv"
+                subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, "--detector", "cnn",
+                                "--model", a.cnn_model], check=True)
+                runs["learned (cnn)"] = read_ours(out)
+                groups.append((scene, view, score_groups(gt, read_ours(out, True), a.frames)))
+            if not a.only_cnn:
+                runs["OpenCV MOG2 + contours"] = mog2(seq, a.frames)
             for name, dets in runs.items():
                 rec, prec, tot = score(gt, dets, stopped, a.frames)
                 cells = [f"{rec[c]:.2f}" if c in rec else "–" for c in cols]
@@ -192,6 +246,16 @@ def main():
                       flush=True)
             print(f"<!-- {scene}/{view}: ground-truth counts (visibility ≥ 0.5) "
                   + ", ".join(f"{c} {tot.get(c, 0)}" for c in cols) + " -->", flush=True)
+
+
+    if groups:
+        print()
+        print("| scene | view | R vehicles | P vehicles | R pedestrians | P pedestrians |")
+        print("| --- | --- | ---: | ---: | ---: | ---: |")
+        f = lambda d, k: f"{d[k]:.2f}" if k in d else "–"
+        for scene, view, (rec, prec, tot) in groups:
+            print(f"| {scene} | {view} | {f(rec, 'veh')} | {f(prec, 'veh')} | "
+                  f"{f(rec, 'ped')} | {f(prec, 'ped')} |")
 
 
 if __name__ == "__main__":

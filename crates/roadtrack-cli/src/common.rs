@@ -216,6 +216,9 @@ pub enum DetectorArg {
     /// Any ONNX object detector, --model F.onnx: YOLO, YOLOX, RT-DETR, D-FINE exports
     /// (docs/DETECTION.md "ONNX detectors").
     Onnx,
+    /// roadtrack's learned detector (`train --detector`), --model F.onnx, default
+    /// models/detector.onnx (docs/DETECTION.md "Learned detector").
+    Cnn,
 }
 
 /// The shared track life cycle after the method (`track`; docs/TRACKING.md).
@@ -285,9 +288,10 @@ impl DetectorArgs {
             || (self.detector.is_none() && self.detections.is_some())
     }
 
-    /// Whether the detector is an ONNX model (`--detector onnx`).
+    /// Whether the detector is a model file (`--detector onnx` or `cnn`): `--model` is its
+    /// model.
     pub fn is_onnx(&self) -> bool {
-        self.detector == Some(DetectorArg::Onnx)
+        matches!(self.detector, Some(DetectorArg::Onnx | DetectorArg::Cnn))
     }
 
     /// The detector asked for; `None` leaves the choice to the method (its own background
@@ -306,7 +310,12 @@ impl DetectorArgs {
                 return Ok(None);
             }
         };
-        if kind != DetectorArg::Onnx {
+        if kind == DetectorArg::Cnn {
+            crate::flags::reject_given(
+                &self.onnx.given_not_cnn(),
+                "only with --detector onnx, not --detector cnn",
+            )?;
+        } else if kind != DetectorArg::Onnx {
             reject_onnx_flags(&self.onnx)?;
         }
         Ok(Some(match kind {
@@ -339,6 +348,14 @@ impl DetectorArgs {
                     ));
                 }
                 self.onnx.spec()?
+            }
+            DetectorArg::Cnn => {
+                if self.detections.is_some() {
+                    return Err(crate::flags::conflict(
+                        "--detections needs --detector file, not --detector cnn",
+                    ));
+                }
+                self.onnx.cnn_spec()?
             }
         }))
     }

@@ -117,6 +117,52 @@ impl OnnxArgs {
         ]
     }
 
+    /// The given flags that `--detector cnn` does not take (it takes --min-score and
+    /// --iou-threshold).
+    pub fn given_not_cnn(&self) -> Vec<(&'static str, bool)> {
+        self.given()
+            .into_iter()
+            .filter(|(f, _)| !matches!(*f, "--min-score" | "--iou-threshold"))
+            .collect()
+    }
+
+    /// The learned detector, loaded (`--detector cnn`): --detector-model (or --model),
+    /// else the shipped models/detector.onnx.
+    #[cfg(feature = "cnn")]
+    pub fn cnn_spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+        use roadtrack_cnn::centernet::{CenterNetConfig, CenterNetDetector, default_model_path};
+        let path = self
+            .detector_model
+            .clone()
+            .unwrap_or_else(default_model_path);
+        if !path.exists() {
+            anyhow::bail!(
+                "--detector cnn: no model at {}; give --model F.onnx or train one with \
+                 `roadtrack train --detector -o {}` (scripts/setup.sh --models)",
+                path.display(),
+                path.display()
+            );
+        }
+        let mut config = CenterNetConfig::default();
+        if let Some(s) = self.min_score {
+            config.min_score = s;
+        }
+        if let Some(s) = self.iou_threshold {
+            config.iou_threshold = s;
+        }
+        let detector = CenterNetDetector::load(&path, &config)?;
+        Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
+    }
+
+    /// Without the `cnn` feature there is no ONNX runtime.
+    #[cfg(not(feature = "cnn"))]
+    pub fn cnn_spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+        anyhow::bail!(
+            "--detector cnn needs roadtrack built with the `cnn` feature \
+             (cargo build -p roadtrack-cli --features cnn)"
+        )
+    }
+
     /// The model path: --detector-model (or what the command took as --model).
     fn model(&self) -> Result<&Path> {
         self.detector_model.as_deref().ok_or_else(|| {

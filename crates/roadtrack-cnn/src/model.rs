@@ -79,6 +79,9 @@ pub fn load_model_likelihood(spec: &ModelSpec) -> Result<Option<Box<dyn Likeliho
             let path = spec.path.as_deref().ok_or_else(|| {
                 Error::Invalid("the cnn likelihood needs a model file (--model F.onnx)".into())
             })?;
+            if crate::centernet::is_centernet_file(path) {
+                return load_centernet_likelihood(path, spec);
+            }
             let cfg = CnnConfig {
                 window_scale: spec.window_scale,
                 ..CnnConfig::default()
@@ -123,6 +126,28 @@ pub fn load_model_likelihood(spec: &ModelSpec) -> Result<Option<Box<dyn Likeliho
             }
         }
     }
+}
+
+/// The learned detector's heat map as a dense likelihood (seed 004's score map): one
+/// network pass per frame, particles looked up at stride 4. Choice: the maximum over the
+/// four class channels (the filters track every class; the trackers have no target class
+/// to pick one channel).
+fn load_centernet_likelihood(
+    path: &std::path::Path,
+    spec: &ModelSpec,
+) -> Result<Option<Box<dyn Likelihood>>> {
+    use crate::centernet::{CLASSES, CenterNetConfig, CenterNetDense, CenterNetDetector};
+    if spec.window_scale.is_some() {
+        return Err(Error::Invalid(format!(
+            "{}: the learned detector's likelihood is its heat map; it takes no window scale",
+            path.display()
+        )));
+    }
+    let det = CenterNetDetector::load(path, &CenterNetConfig::default())?;
+    Ok(Some(Box::new(dense_likelihood(CenterNetDense {
+        detector: Arc::new(det),
+        channels: (0..CLASSES).collect(),
+    }))))
 }
 
 #[cfg(test)]

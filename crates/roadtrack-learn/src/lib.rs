@@ -1,3 +1,21 @@
-//! Training roadtrack's learned detector with burn (skeleton; the training code lands next).
+//! Training roadtrack's learned detector (`roadtrack train --detector`) with burn on
+//! simulator renders, exported as ONNX for tract inference (`roadtrack_cnn::centernet`).
+//!
+//! - [`net`]: the centre-point network in burn (the layer list of
+//!   `roadtrack_cnn::centernet::CenterNetShape`);
+//! - [`data`]: randomised simulator episodes, photometric corruption, crops and targets;
+//! - [`train`](mod@train): focal + L1 losses and the deterministic training loop.
+//!
+//! See docs/DETECTION.md "Learned detector" for the recipe and its cost.
+
+pub mod arch;
+pub mod data;
+pub mod net;
+pub mod parity;
+pub mod train;
+
+#[cfg(test)]
+mod tests;
 
 pub use burn;
+pub use train::{Progress, StepLoss, TrainConfig, train, training_preprocessing};

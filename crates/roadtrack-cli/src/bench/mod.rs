@@ -132,6 +132,28 @@ pub fn detect_frames(
     ))
 }
 
+/// Frames per second of any detector over `frames` (stage name `stage`).
+pub fn detect_with(
+    stage: &str,
+    label: &str,
+    frames: &[Frame],
+    det: &mut dyn roadtrack::detect::Detector,
+) -> Result<StageResult> {
+    let start = Instant::now();
+    let mut n = 0usize;
+    for f in frames {
+        n += det.detect(f)?.detections.len();
+    }
+    std::hint::black_box(n);
+    Ok(StageResult::new(
+        stage,
+        label,
+        frames.len() as u64,
+        "frames",
+        start.elapsed().as_secs_f64(),
+    ))
+}
+
 /// Reads up to `max_frames` frames of `path` into memory (bad frames as `on_bad_frame`
 /// says).
 pub fn load_frames(

@@ -92,6 +92,23 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             &generated,
             &BackgroundDetectorConfig::default(),
         )?);
+        // The learned detector, when its model is there (models/detector.onnx).
+        #[cfg(feature = "cnn")]
+        {
+            use roadtrack_cnn::centernet::{
+                CenterNetConfig, CenterNetDetector, default_model_path,
+            };
+            let path = default_model_path();
+            if path.is_file() {
+                let mut det = CenterNetDetector::load(&path, &CenterNetConfig::default())?;
+                results.push(bench::detect_with(
+                    "detect-cnn",
+                    "generated 640×480, 12 boxes",
+                    &generated,
+                    &mut det,
+                )?);
+            }
+        }
     }
     if want(Stage::Simulate) {
         use roadtrack_sim::{SceneKind, SimConfig, ViewKind};

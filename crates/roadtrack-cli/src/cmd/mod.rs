@@ -15,3 +15,4 @@ pub mod simulate;
 pub mod sweep;
 pub mod track;
 pub mod train;
+pub mod train_detector;

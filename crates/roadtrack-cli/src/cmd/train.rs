@@ -35,9 +35,15 @@ pub struct Args {
     #[arg(long, value_name = "DIR", requires = "positives")]
     pub negatives: Option<PathBuf>,
     /// MOTChallenge sequence folder with gt/gt.txt to cut patches from.
-    #[arg(long, value_name = "SEQ", required_unless_present = "positives")]
+    #[arg(long, value_name = "SEQ", required_unless_present_any = ["positives", "detector"])]
     pub sequence: Option<PathBuf>,
-    /// Output ONNX model.
+    /// Train the learned object detector (`--detector cnn`) on simulator renders instead
+    /// of a classifier (docs/DETECTION.md "Learned detector").
+    #[arg(long, conflicts_with_all = ["positives", "negatives", "sequence", "epochs", "train_fraction", "input_size", "max_positives", "report"])]
+    pub detector: bool,
+    #[command(flatten)]
+    pub detector_args: super::train_detector::DetectorTrainArgs,
+    /// Output ONNX model (--detector: written at every checkpoint too).
     #[arg(short, long, default_value = "model.onnx")]
     pub output: PathBuf,
     /// Target class and the paper's hyper-parameters for it.
@@ -105,13 +111,20 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
 
 /// Without the `cnn` feature there is no trainer: fail before reading any data.
 #[cfg(not(feature = "cnn"))]
-pub fn run(args: Args, _ui: &Ui) -> Result<()> {
-    let _ = args;
+pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    if args.detector {
+        return super::train_detector::run(&args, ui);
+    }
+    super::train_detector::reject_detector_flags(&args.detector_args)?;
     bail!(NO_CNN)
 }
 
 #[cfg(feature = "cnn")]
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
+    if args.detector {
+        return super::train_detector::run(&args, ui);
+    }
+    super::train_detector::reject_detector_flags(&args.detector_args)?;
     let mut config = TrainConfig::preset(args.preset);
     config.seed = args.seed;
     if let Some(v) = args.epochs {

@@ -1,0 +1,203 @@
+//! `roadtrack train --detector`: train the learned detector (`--detector cnn`) on simulator
+//! renders with burn (crate roadtrack-learn) and write it as ONNX.
+
+use crate::common::Ui;
+use anyhow::Result;
+use std::path::PathBuf;
+
+/// The flags of `train --detector` (with `--seed`, `--batch-size`, `--learning-rate`, `-o`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct DetectorTrainArgs {
+    /// --detector: optimiser steps of the learning-rate schedule [default: 3000].
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000_000))]
+    pub steps: Option<usize>,
+    /// --detector: stop after N steps, the schedule of --steps unchanged (reproduces a
+    /// checkpoint of a longer run) [default: --steps].
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000_000))]
+    pub stop_after: Option<usize>,
+    /// --detector: crop side in px, a multiple of 16 [default: 128].
+    #[arg(long, value_name = "PX", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(32..=1024))]
+    pub crop: Option<usize>,
+    /// --detector: write the weights so far to the output every N steps (0: only at the
+    /// end) [default: 250].
+    #[arg(long, value_name = "N")]
+    pub checkpoint_every: Option<usize>,
+    /// --detector: no training; write the weights saved as JSON by roadtrack-learn's
+    /// `train_detector` example as ONNX (-o).
+    #[arg(long, value_name = "W.json")]
+    pub from_weights: Option<PathBuf>,
+    /// --detector: write every step's losses to this CSV (step, learning_rate, heat, boxes,
+    /// total).
+    #[arg(long, value_name = "F.csv")]
+    pub loss_log: Option<PathBuf>,
+}
+
+/// The `--detector` flags are usage errors when training a classifier.
+pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
+    crate::flags::reject_given(
+        &[
+            ("--steps", a.steps.is_some()),
+            ("--stop-after", a.stop_after.is_some()),
+            ("--crop", a.crop.is_some()),
+            ("--checkpoint-every", a.checkpoint_every.is_some()),
+            ("--loss-log", a.loss_log.is_some()),
+            ("--from-weights", a.from_weights.is_some()),
+        ],
+        "only with --detector",
+    )
+}
+
+/// Without the `learn` feature there is no trainer (`--from-weights` still converts when
+/// the `cnn` feature is on).
+#[cfg(not(feature = "learn"))]
+pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
+    #[cfg(feature = "cnn")]
+    if let Some(path) = &args.detector_args.from_weights {
+        use anyhow::Context as _;
+        let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
+        let w = roadtrack_cnn::centernet::CenterNetWeights::from_json(&text)
+            .with_context(|| format!("reading {}", path.display()))?;
+        roadtrack_cnn::centernet::write_onnx(&args.output, &w)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        ui.info(format!("wrote {}", args.output.display()));
+        return Ok(());
+    }
+    let _ = (args, ui);
+    anyhow::bail!(
+        "roadtrack was built without the `learn` feature, which trains the detector \
+         (cargo build -p roadtrack-cli --features learn)"
+    )
+}
+
+/// Trains and writes the detector.
+#[cfg(feature = "learn")]
+pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
+    use anyhow::Context as _;
+    use roadtrack_learn::{Progress, TrainConfig, train};
+    use std::io::Write as _;
+
+    let d = &args.detector_args;
+    if let Some(path) = &d.from_weights {
+        let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
+        let w = roadtrack_cnn::centernet::CenterNetWeights::from_json(&text)
+            .with_context(|| format!("reading {}", path.display()))?;
+        roadtrack_cnn::centernet::write_onnx(&args.output, &w)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        ui.info(format!("wrote {}", args.output.display()));
+        return Ok(());
+    }
+    let mut config = TrainConfig {
+        seed: args.seed,
+        ..TrainConfig::default()
+    };
+    if let Some(v) = d.steps {
+        config.steps = v;
+    }
+    config.stop_after = d.stop_after;
+    if let Some(v) = d.crop {
+        config.data.crop = v;
+    }
+    if let Some(v) = args.batch_size {
+        config.batch = v;
+    }
+    if let Some(v) = args.learning_rate {
+        config.learning_rate = v;
+    }
+    crate::flags::check_overrides(
+        config.validate(),
+        &[
+            ("crop", "--crop", d.crop.is_some()),
+            ("batch", "--batch-size", args.batch_size.is_some()),
+            (
+                "learning_rate",
+                "--learning-rate",
+                args.learning_rate.is_some(),
+            ),
+        ],
+        None,
+    )?;
+    let checkpoint_every = d.checkpoint_every.unwrap_or(250);
+    let mut log = match &d.loss_log {
+        Some(p) => {
+            let f = std::fs::File::create(p)
+                .with_context(|| format!("creating the loss log {}", p.display()))?;
+            let mut w = std::io::BufWriter::new(f);
+            writeln!(w, "step,learning_rate,heat,boxes,total")
+                .with_context(|| format!("writing {}", p.display()))?;
+            Some((p.clone(), w))
+        }
+        None => None,
+    };
+    ui.info(format!(
+        "training the detector: {} steps of {} crops of {} px, lr {}, seed {}; simulator \
+         seeds from {}",
+        config.steps,
+        config.batch,
+        config.data.crop,
+        config.learning_rate,
+        config.seed,
+        config.sim_seed_base
+    ));
+    let stop = config.stop_after.unwrap_or(config.steps).min(config.steps);
+    let bar = ui.progress(Some(stop as u64), "train");
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} steps, eta {eta}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    let output = args.output.clone();
+    let mut smooth: Option<f64> = None;
+    let weights = train(&config, checkpoint_every, &mut |p| {
+        match p {
+            Progress::Step(l) => {
+                let s = smooth.map_or(f64::from(l.total), |s| 0.98 * s + 0.02 * f64::from(l.total));
+                smooth = Some(s);
+                bar.set_position(l.step as u64);
+                bar.set_message(format!("loss {s:.4}"));
+                if let Some((path, w)) = &mut log {
+                    writeln!(
+                        w,
+                        "{},{},{},{},{}",
+                        l.step, l.learning_rate, l.heat, l.boxes, l.total
+                    )
+                    .and_then(|_| w.flush())
+                    .map_err(|e| roadtrack::Error::io(path.as_path(), e))?;
+                }
+                bar.suspend(|| {
+                    ui.detail(format!(
+                        "step {:>6}: loss {:.4} (heat {:.4}, boxes {:.4}), lr {:.2e}",
+                        l.step, l.total, l.heat, l.boxes, l.learning_rate
+                    ))
+                });
+            }
+            Progress::Checkpoint { step, weights } => {
+                roadtrack_cnn::centernet::write_onnx(&output, &to_cnn(weights)?)?;
+                bar.suspend(|| {
+                    if step < stop {
+                        eprintln!("checkpoint after {step} steps: {}", output.display());
+                    }
+                });
+            }
+        }
+        Ok(())
+    })
+    .context("training the detector")?;
+    bar.finish_and_clear();
+    roadtrack_cnn::centernet::write_onnx(&args.output, &to_cnn(&weights)?)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    ui.info(format!(
+        "wrote {} ({} steps{})",
+        args.output.display(),
+        stop,
+        smooth.map_or(String::new(), |s| format!(", final loss {s:.4}"))
+    ));
+    Ok(())
+}
+
+/// The trainer's weights in roadtrack-cnn's form (through their shared JSON).
+#[cfg(feature = "learn")]
+fn to_cnn(
+    w: &roadtrack_learn::arch::CenterNetWeights,
+) -> roadtrack::Result<roadtrack_cnn::centernet::CenterNetWeights> {
+    roadtrack_cnn::centernet::CenterNetWeights::from_json(&w.to_json()?)
+}

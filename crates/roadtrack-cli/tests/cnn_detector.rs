@@ -1,0 +1,122 @@
+//! `--detector cnn` (the learned detector, models/detector.onnx) and `train --detector` on
+//! the command line.
+#![cfg(feature = "cnn")]
+
+mod common;
+use common::{bin, fixture, stderr};
+use std::path::{Path, PathBuf};
+
+fn cnn_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../roadtrack-cnn/tests/fixtures")
+        .join(name)
+}
+
+fn shipped_model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/detector.onnx")
+}
+
+#[test]
+fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
+    for model in [
+        cnn_fixture("tiny_classifier.onnx"),
+        cnn_fixture("tiny_yolo.onnx"),
+    ] {
+        let o = bin()
+            .arg("detect")
+            .arg(fixture("tiny_sequence"))
+            .args(["--detector", "cnn", "--model"])
+            .arg(&model)
+            .arg("-o")
+            .arg(std::env::temp_dir().join("roadtrack-cnn-never-written.csv"))
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let err = stderr(&o);
+        assert!(err.contains(&*model.to_string_lossy()), "{err}");
+        assert!(err.contains("not a roadtrack learned detector"), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // A missing file names it too; ONNX-only flags are usage errors.
+    let o = bin()
+        .arg("detect")
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--model", "no/such/model.onnx"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no/such/model.onnx"), "{}", stderr(&o));
+    let o = bin()
+        .arg("detect")
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--layout", "yolo"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn detect_with_the_shipped_model_writes_classified_boxes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("d.csv");
+    let o = bin()
+        .arg("detect")
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--model"])
+        .arg(shipped_model())
+        .args(["--min-score", "0.05", "-o"])
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let dets = roadtrack::io::detections::read_detections(&out).expect("read output");
+    for d in &dets {
+        assert!(d.class.is_some() && d.score.is_some() && d.colour_rgb.is_some());
+        assert!(d.score.unwrap_or(0.0) >= 0.05);
+    }
+}
+
+#[cfg(feature = "learn")]
+#[test]
+fn train_detector_writes_a_loadable_model_and_a_loss_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("det.onnx");
+    let log = dir.path().join("loss.csv");
+    let o = bin()
+        .args([
+            "-q",
+            "train",
+            "--detector",
+            "--steps",
+            "3",
+            "--batch-size",
+            "2",
+        ])
+        .args(["--crop", "32", "--seed", "1", "-o"])
+        .arg(&model)
+        .arg("--loss-log")
+        .arg(&log)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&log).expect("loss log");
+    assert_eq!(text.lines().count(), 4, "{text}");
+    assert!(text.starts_with("step,learning_rate,heat,boxes,total"));
+    // The written model runs as --detector cnn.
+    let o = bin()
+        .arg("detect")
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--model"])
+        .arg(&model)
+        .arg("-o")
+        .arg(dir.path().join("d.csv"))
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    // --steps belongs to --detector.
+    let o = bin()
+        .args(["train", "--sequence", "x", "--steps", "3"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

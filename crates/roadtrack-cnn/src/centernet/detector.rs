@@ -1,0 +1,487 @@
+//! [`CenterNetDetector`]: the learned detector run through tract, as a roadtrack
+//! [`Detector`] and as a dense score map for the filters' likelihood.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+use tract_onnx::prelude::*;
+
+use super::{CLASSES, INPUT_MULTIPLE, KIND, STRIDE, channel_class};
+use crate::detector::decode::{Candidate, nms};
+use crate::onnx::{metadata, model_error, read_image_model, tract_load};
+use crate::window::Preprocessing;
+use roadtrack::class::ObjectClass;
+use roadtrack::detect::{Detector, FrameDetections};
+use roadtrack::detection::Detection;
+use roadtrack::error::{Error, Result};
+use roadtrack::frame::Frame;
+use roadtrack::geometry::{BBox, Point};
+use roadtrack::likelihood::{DenseScorer, ScoreMap};
+
+/// Decoding settings of the learned detector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CenterNetConfig {
+    /// Heat-map peaks below this are dropped. Default 0.3.
+    pub min_score: f64,
+    /// Class-wise NMS IoU. Default 0.45.
+    pub iou_threshold: f64,
+    /// A box overlapping a better box of another class by more than this IoU is dropped
+    /// (one object seen as car and lorry). Default 0.7.
+    pub cross_class_iou: f64,
+    /// At most this many detections per frame. Default 300.
+    pub max_detections: usize,
+}
+
+impl Default for CenterNetConfig {
+    fn default() -> Self {
+        Self {
+            // Choice: 0.3 from the held-out validation seed (docs/EXPERIMENTS.md "Detection").
+            min_score: 0.3,
+            iou_threshold: 0.45,
+            cross_class_iou: 0.7,
+            max_detections: 300,
+        }
+    }
+}
+
+impl roadtrack::config::Validate for CenterNetConfig {
+    fn validate(&self) -> Result<()> {
+        for (field, v) in [
+            ("min_score", self.min_score),
+            ("iou_threshold", self.iou_threshold),
+            ("cross_class_iou", self.cross_class_iou),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::config(
+                    "CenterNetConfig",
+                    field,
+                    format!("must be in [0, 1], got {v}"),
+                ));
+            }
+        }
+        if self.max_detections == 0 {
+            return Err(Error::config(
+                "CenterNetConfig",
+                "max_detections",
+                "must be at least 1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The shipped model's path: `models/detector.onnx` of the current directory when it has
+/// one, else of the repository roadtrack was built from. Choice: the working directory
+/// first, so a clone's own model wins over the build tree's.
+pub fn default_model_path() -> PathBuf {
+    let local = PathBuf::from("models/detector.onnx");
+    if local.is_file() {
+        return local;
+    }
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/detector.onnx");
+    if built.is_file() { built } else { local }
+}
+
+/// The network outputs of one frame, cropped to the frame's cells.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeatMaps {
+    /// Cells across.
+    pub cols: usize,
+    /// Cells down.
+    pub rows: usize,
+    /// `CLASSES × rows × cols` probabilities.
+    pub heat: Vec<f32>,
+    /// `4 × rows × cols`: `ln(w/4)`, `ln(h/4)`, `dx`, `dy`.
+    pub boxes: Vec<f32>,
+}
+
+/// The learned centre-point detector (module docs of [`super`]).
+pub struct CenterNetDetector {
+    path: PathBuf,
+    proto: tract_onnx::pb::ModelProto,
+    prep: Preprocessing,
+    config: CenterNetConfig,
+    plans: Mutex<HashMap<(usize, usize), Arc<TypedRunnableModel>>>,
+}
+
+impl std::fmt::Debug for CenterNetDetector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CenterNetDetector")
+            .field("path", &self.path)
+            .field("prep", &self.prep)
+            .field("config", &self.config)
+            .finish_non_exhaustive()
+    }
+}
+
+fn parse_triple(s: &str) -> Option<[f32; 3]> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .ok()?;
+    <[f32; 3]>::try_from(v).ok()
+}
+
+impl CenterNetDetector {
+    /// Loads a model written by `roadtrack train --detector`.
+    ///
+    /// # Errors
+    /// [`Error::Io`] when unreadable; [`Error::Format`] naming the file when it is not
+    /// ONNX, not such a detector (no `roadtrack.kind = centernet` metadata, or outputs other
+    /// than `heatmap` 4 × and `boxes` 4 × at stride 4), or tract cannot run it.
+    pub fn load(path: &Path, config: &CenterNetConfig) -> Result<Self> {
+        roadtrack::config::Validate::validate(config)?;
+        let (proto, _dims) = read_image_model(path)?;
+        if metadata(&proto, "roadtrack.kind") != Some(KIND) {
+            return Err(model_error(
+                path,
+                "not a roadtrack learned detector (no `roadtrack.kind = centernet` metadata; \
+                 write one with `roadtrack train --detector`, or use --detector onnx for \
+                 other detectors)",
+            ));
+        }
+        let d = Preprocessing::default();
+        let prep = Preprocessing {
+            input_scale: metadata(&proto, "roadtrack.input_scale")
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(d.input_scale),
+            mean: metadata(&proto, "roadtrack.mean")
+                .and_then(parse_triple)
+                .unwrap_or(d.mean),
+            std: metadata(&proto, "roadtrack.std")
+                .and_then(parse_triple)
+                .unwrap_or(d.std),
+        };
+        prep.validate()?;
+        let det = Self {
+            path: path.to_path_buf(),
+            proto,
+            prep,
+            config: config.clone(),
+            plans: Mutex::new(HashMap::new()),
+        };
+        // Fail now on a model tract cannot run or with other outputs.
+        let probe = INPUT_MULTIPLE * 2;
+        let out = det.run_padded(vec![0.0; 3 * probe * probe], probe, probe)?;
+        let want = probe / STRIDE;
+        if out.0.shape() != [1, CLASSES, want, want] || out.1.shape() != [1, 4, want, want] {
+            return Err(model_error(
+                path,
+                format!(
+                    "not a roadtrack learned detector: outputs {:?} and {:?} on a {probe} × \
+                     {probe} input, expected [1, {CLASSES}, {want}, {want}] and [1, 4, {want}, {want}]",
+                    out.0.shape(),
+                    out.1.shape()
+                ),
+            ));
+        }
+        Ok(det)
+    }
+
+    /// The model file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The input preprocessing (from the model's metadata).
+    pub fn preprocessing(&self) -> &Preprocessing {
+        &self.prep
+    }
+
+    /// The decoding settings.
+    pub fn config(&self) -> &CenterNetConfig {
+        &self.config
+    }
+
+    fn run_error(&self, e: impl std::fmt::Display) -> Error {
+        Error::Invalid(format!("{}: running the model: {e:#}", self.path.display()))
+    }
+
+    fn plan(&self, h: usize, w: usize) -> Result<Arc<TypedRunnableModel>> {
+        let mut plans = self
+            .plans
+            .lock()
+            .map_err(|_| Error::Invalid("detector plan cache poisoned".into()))?;
+        if let Some(p) = plans.get(&(h, w)) {
+            return Ok(Arc::clone(p));
+        }
+        let plan = tract_load(&self.proto, [1, 3, h, w])
+            .map_err(|e| model_error(&self.path, format!("tract cannot load it: {e:#}")))?;
+        plans.insert((h, w), Arc::clone(&plan));
+        Ok(plan)
+    }
+
+    /// Runs the network on a preprocessed `3 × h × w` input (`h`, `w` multiples of 16).
+    fn run_padded(
+        &self,
+        input: Vec<f32>,
+        h: usize,
+        w: usize,
+    ) -> Result<(tract_ndarray::ArrayD<f32>, tract_ndarray::ArrayD<f32>)> {
+        let plan = self.plan(h, w)?;
+        let t = Tensor::from_shape(&[1, 3, h, w], &input).map_err(|e| self.run_error(e))?;
+        let out = plan.run(tvec![t.into()]).map_err(|e| self.run_error(e))?;
+        if out.len() != 2 {
+            return Err(model_error(
+                &self.path,
+                format!("expected 2 outputs (heatmap, boxes), found {}", out.len()),
+            ));
+        }
+        let get = |i: usize| -> Result<tract_ndarray::ArrayD<f32>> {
+            let v = out[i].cast_to::<f32>().map_err(|e| self.run_error(e))?;
+            let view = v
+                .to_plain_array_view::<f32>()
+                .map_err(|e| self.run_error(e))?;
+            Ok(view.to_owned())
+        };
+        Ok((get(0)?, get(1)?))
+    }
+
+    /// The raw outputs `(heatmap, boxes)`, row-major `1 × 4 × h/4 × w/4` each, of a
+    /// preprocessed `3 × h × w` input (`h`, `w` multiples of 16).
+    ///
+    /// # Errors
+    /// Sides that are not multiples of 16; the model fails to run.
+    pub fn forward(&self, input: Vec<f32>, h: usize, w: usize) -> Result<(Vec<f32>, Vec<f32>)> {
+        if !h.is_multiple_of(INPUT_MULTIPLE)
+            || !w.is_multiple_of(INPUT_MULTIPLE)
+            || h == 0
+            || w == 0
+        {
+            return Err(Error::Invalid(format!(
+                "detector input {h} × {w}: sides must be positive multiples of {INPUT_MULTIPLE}"
+            )));
+        }
+        let (a, b) = self.run_padded(input, h, w)?;
+        Ok((a.iter().copied().collect(), b.iter().copied().collect()))
+    }
+
+    /// The preprocessed, padded input of `image`: `(values, padded h, padded w)`. Padding
+    /// (right and bottom, to multiples of 16) is 0 after preprocessing, i.e. the mean colour.
+    pub fn input(&self, image: &RgbImage) -> (Vec<f32>, usize, usize) {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let ph = h.div_ceil(INPUT_MULTIPLE).max(1) * INPUT_MULTIPLE;
+        let pw = w.div_ceil(INPUT_MULTIPLE).max(1) * INPUT_MULTIPLE;
+        let mut out = vec![0.0f32; 3 * ph * pw];
+        let p = &self.prep;
+        let gain: [f32; 3] = std::array::from_fn(|c| p.input_scale / p.std[c]);
+        let offset: [f32; 3] = std::array::from_fn(|c| -p.mean[c] / p.std[c]);
+        for (y, row) in image.rows().enumerate() {
+            for (x, px) in row.enumerate() {
+                for c in 0..3 {
+                    out[c * ph * pw + y * pw + x] = gain[c] * f32::from(px.0[c]) + offset[c];
+                }
+            }
+        }
+        (out, ph, pw)
+    }
+
+    /// The network's heat maps and box maps of `image`, cropped to the frame's cells.
+    ///
+    /// # Errors
+    /// The model fails to run.
+    pub fn heat_maps(&self, image: &RgbImage) -> Result<HeatMaps> {
+        let (input, ph, pw) = self.input(image);
+        let (heat, boxes) = self.run_padded(input, ph, pw)?;
+        let (oh, ow) = (ph / STRIDE, pw / STRIDE);
+        let cols = (image.width() as usize).div_ceil(STRIDE).max(1);
+        let rows = (image.height() as usize).div_ceil(STRIDE).max(1);
+        let crop = |a: &tract_ndarray::ArrayD<f32>, ch: usize| -> Result<Vec<f32>> {
+            if a.shape() != [1, ch, oh, ow] {
+                return Err(model_error(
+                    &self.path,
+                    format!(
+                        "output shape {:?}, expected [1, {ch}, {oh}, {ow}]",
+                        a.shape()
+                    ),
+                ));
+            }
+            let flat: Vec<f32> = a.iter().copied().collect();
+            let mut out = Vec::with_capacity(ch * rows * cols);
+            for c in 0..ch {
+                for r in 0..rows {
+                    out.extend_from_slice(&flat[c * oh * ow + r * ow..][..cols]);
+                }
+            }
+            Ok(out)
+        };
+        Ok(HeatMaps {
+            cols,
+            rows,
+            heat: crop(&heat, CLASSES)?,
+            boxes: crop(&boxes, 4)?,
+        })
+    }
+
+    /// The objects in `image`, best first: `(box in image px, class, score)`.
+    ///
+    /// # Errors
+    /// The model fails to run.
+    pub fn detect_boxes(&self, image: &RgbImage) -> Result<Vec<(BBox, ObjectClass, f64)>> {
+        let maps = self.heat_maps(image)?;
+        let cands = decode_peaks(&maps, self.config.min_score);
+        let kept = nms(cands, self.config.iou_threshold, usize::MAX);
+        // Cross-class suppression: `kept` is sorted by score.
+        let mut out: Vec<Candidate> = Vec::new();
+        for c in kept {
+            if out.len() >= self.config.max_detections {
+                break;
+            }
+            if out
+                .iter()
+                .all(|k| k.class == c.class || k.iou(&c) <= self.config.cross_class_iou)
+            {
+                out.push(c);
+            }
+        }
+        let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+        Ok(out
+            .into_iter()
+            .filter_map(|c| {
+                let x0 = (c.cx - c.w / 2.0).clamp(0.0, w);
+                let y0 = (c.cy - c.h / 2.0).clamp(0.0, h);
+                let x1 = (c.cx + c.w / 2.0).clamp(0.0, w);
+                let y1 = (c.cy + c.h / 2.0).clamp(0.0, h);
+                (x1 > x0 && y1 > y0).then(|| {
+                    (
+                        BBox::new(x0, y0, x1 - x0, y1 - y0),
+                        channel_class(c.class),
+                        c.score,
+                    )
+                })
+            })
+            .collect())
+    }
+
+    /// The heat map of `channels` (their maximum per cell) as a score map: cell `(r, c)`
+    /// centred at image px `(4c + 2, 4r + 2)`.
+    ///
+    /// # Errors
+    /// The model fails to run.
+    pub fn score_map(&self, image: &RgbImage, channels: &[usize]) -> Result<ScoreMap> {
+        let maps = self.heat_maps(image)?;
+        Ok(score_map_of(&maps, channels))
+    }
+}
+
+/// The maximum of `channels` of `maps` per cell as a [`ScoreMap`].
+pub fn score_map_of(maps: &HeatMaps, channels: &[usize]) -> ScoreMap {
+    let n = maps.rows * maps.cols;
+    let values = (0..n)
+        .map(|i| {
+            channels
+                .iter()
+                .filter(|&&c| c < CLASSES)
+                .map(|&c| f64::from(maps.heat[c * n + i]))
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    let half = STRIDE as f64 / 2.0;
+    ScoreMap {
+        origin_px: Point::new(half, half),
+        stride_px: STRIDE as f64,
+        cols: maps.cols,
+        rows: maps.rows,
+        values,
+    }
+}
+
+/// Heat-map peaks (a cell at least as high as its 8 neighbours, ≥ `min_score`) as boxes
+/// in image px: centre `4 (cell + offset)`, size `4 e^s`.
+pub fn decode_peaks(maps: &HeatMaps, min_score: f64) -> Vec<Candidate> {
+    let (rows, cols) = (maps.rows, maps.cols);
+    let n = rows * cols;
+    let s = STRIDE as f64;
+    let mut out = Vec::new();
+    for k in 0..CLASSES {
+        let plane = &maps.heat[k * n..(k + 1) * n];
+        for r in 0..rows {
+            for c in 0..cols {
+                let v = plane[r * cols + c];
+                if f64::from(v) < min_score || !v.is_finite() {
+                    continue;
+                }
+                let mut peak = true;
+                'n: for dr in -1i64..=1 {
+                    for dc in -1i64..=1 {
+                        let (rr, cc) = (r as i64 + dr, c as i64 + dc);
+                        if (dr, dc) == (0, 0)
+                            || rr < 0
+                            || cc < 0
+                            || rr >= rows as i64
+                            || cc >= cols as i64
+                        {
+                            continue;
+                        }
+                        let u = plane[rr as usize * cols + cc as usize];
+                        // Ties: the first cell in raster order is the peak.
+                        if u > v || (u == v && (dr < 0 || (dr == 0 && dc < 0))) {
+                            peak = false;
+                            break 'n;
+                        }
+                    }
+                }
+                if !peak {
+                    continue;
+                }
+                let i = r * cols + c;
+                let b = |j: usize| f64::from(maps.boxes[j * n + i]);
+                let (lw, lh) = (b(0).clamp(-4.0, 6.0), b(1).clamp(-4.0, 6.0));
+                out.push(Candidate {
+                    cx: (c as f64 + b(2).clamp(-0.5, 1.5)) * s,
+                    cy: (r as f64 + b(3).clamp(-0.5, 1.5)) * s,
+                    w: s * lw.exp(),
+                    h: s * lh.exp(),
+                    class: k,
+                    score: f64::from(v),
+                });
+            }
+        }
+    }
+    out
+}
+
+impl Detector for CenterNetDetector {
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+        let boxes = self.detect_boxes(&frame.image)?;
+        let detections = boxes
+            .into_iter()
+            .enumerate()
+            .map(|(i, (bbox, class, score))| Detection {
+                frame: frame.index,
+                id: i as u64 + 1,
+                pos_px: bbox.centre(),
+                size_px: Some((bbox.width, bbox.height)),
+                colour_rgb: roadtrack::detect::file::mean_colour(&frame.image, &bbox),
+                class: Some(class),
+                score: Some(score),
+                area_px: None,
+            })
+            .collect();
+        Ok(FrameDetections {
+            detections,
+            foreground: None,
+        })
+    }
+}
+
+/// The detector's heat map as the filters' dense likelihood (seed 004's score map): the
+/// channels of the filter's target class.
+#[derive(Debug, Clone)]
+pub struct CenterNetDense {
+    /// The detector.
+    pub detector: Arc<CenterNetDetector>,
+    /// Heat-map channels whose maximum is the score.
+    pub channels: Vec<usize>,
+}
+
+impl DenseScorer for CenterNetDense {
+    fn score_map(&self, image: &RgbImage) -> Result<ScoreMap> {
+        self.detector.score_map(image, &self.channels)
+    }
+}

@@ -1,0 +1,49 @@
+//! Trains the detector without the command line (no tract in the build): writes the weights
+//! as JSON at every checkpoint; `roadtrack train --detector` does the same and writes ONNX.
+//!
+//!     cargo run --release -p roadtrack-learn --example train_detector -- STEPS SEED OUT.json [LOG.csv]
+
+use std::io::Write as _;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 4 {
+        return Err("usage: train_detector STEPS SEED OUT.json [LOG.csv]".into());
+    }
+    let cfg = roadtrack_learn::TrainConfig {
+        steps: args[1].parse()?,
+        seed: args[2].parse()?,
+        ..Default::default()
+    };
+    let out = std::path::PathBuf::from(&args[3]);
+    let mut log = match args.get(4) {
+        Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p)?)),
+        None => None,
+    };
+    let start = std::time::Instant::now();
+    roadtrack_learn::train(&cfg, 100, &mut |p| {
+        match p {
+            roadtrack_learn::Progress::Step(l) => {
+                if let Some(w) = &mut log {
+                    writeln!(
+                        w,
+                        "{},{:.1},{},{},{},{}",
+                        l.step,
+                        start.elapsed().as_secs_f64(),
+                        l.learning_rate,
+                        l.heat,
+                        l.boxes,
+                        l.total
+                    )
+                    .and_then(|_| w.flush())
+                    .map_err(|e| roadtrack::Error::io("log", e))?;
+                }
+            }
+            roadtrack_learn::Progress::Checkpoint { weights, .. } => {
+                roadtrack::io::atomic::write_bytes_atomic(&out, weights.to_json()?.as_bytes())?;
+            }
+        }
+        Ok(())
+    })?;
+    Ok(())
+}

@@ -1,0 +1,370 @@
+//! Training data from the simulator (the label source): randomised scenes rendered in
+//! process, photometric corruption of whole frames, and random crops with their
+//! centre-point targets.
+//!
+//! Every episode draws a [`SimConfig`] from its own seed ([`random_sim_config`]): scene,
+//! view, aerial scale and rotation, oblique camera height, tilt, yaw and focal length,
+//! vehicle colours, traffic and pedestrian density, sensor noise, shadows and sun. The
+//! rendered frames are then darkened or brightened per channel, blurred and JPEG-compressed
+//! at a random quality ([`corrupt`]); each training sample is a crop at a random scale,
+//! mirrored half of the time ([`make_sample`]).
+
+use crate::arch::{CLASSES, Preprocessing, STRIDE, class_channel};
+use image::RgbImage;
+use rand::RngExt;
+use roadtrack::error::Result;
+use roadtrack::geometry::BBox;
+use roadtrack_sim::config::FleetColour;
+use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
+
+/// One labelled object of a training frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Object {
+    /// Box in frame px.
+    pub bbox: BBox,
+    /// Heat-map channel.
+    pub channel: usize,
+    /// Fraction of the silhouette not hidden by nearer objects.
+    pub visibility: f64,
+}
+
+/// A rendered, corrupted frame and its objects.
+#[derive(Debug, Clone)]
+pub struct TrainFrame {
+    /// The image.
+    pub image: RgbImage,
+    /// The objects with at least one visible pixel.
+    pub objects: Vec<Object>,
+}
+
+/// What the episodes draw from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DataConfig {
+    /// Rendered frame width, px.
+    pub width: u32,
+    /// Rendered frame height, px.
+    pub height: u32,
+    /// Frames rendered per episode (one simulation).
+    pub frames_per_episode: u32,
+    /// Crop side, px (a multiple of 16).
+    pub crop: usize,
+    /// Objects less visible than this are neither positives nor negatives (their
+    /// surroundings are left out of the loss).
+    pub min_visibility: f64,
+}
+
+impl Default for DataConfig {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            frames_per_episode: 6,
+            crop: 128,
+            min_visibility: 0.25,
+        }
+    }
+}
+
+fn scale(rng: &mut impl rand::Rng, lo: f64, hi: f64) -> f64 {
+    rng.random_range(lo..hi)
+}
+
+/// A random simulator configuration for one episode (see the module docs).
+pub fn random_sim_config(rng: &mut impl rand::Rng, data: &DataConfig) -> SimConfig {
+    let mut c = SimConfig {
+        width: data.width,
+        height: data.height,
+        frames: data.frames_per_episode,
+        ..SimConfig::default()
+    };
+    c.scene = match rng.random_range(0..3) {
+        0 => SceneKind::Road,
+        1 => SceneKind::Intersection,
+        _ => SceneKind::Crossing,
+    };
+    c.view = if rng.random_bool(0.5) {
+        ViewKind::Aerial
+    } else {
+        ViewKind::Oblique
+    };
+    // Frames 0.5–2 s apart: different traffic in each.
+    c.fps = scale(rng, 0.5, 2.0);
+    c.warmup_s = scale(rng, 20.0, 150.0);
+    c.aerial.metres_per_pixel = scale(rng, 0.2, 0.45);
+    c.aerial.rotation_deg = if rng.random_bool(0.5) {
+        f64::from(rng.random_range(0..4) * 90)
+    } else {
+        scale(rng, 0.0, 360.0)
+    };
+    let (yaw, tilt) = match c.scene {
+        SceneKind::Road => (18.0, 13.0),
+        SceneKind::Intersection => (38.0, 20.0),
+        SceneKind::Crossing => (62.0, 26.0),
+    };
+    c.oblique.height_m = scale(rng, 5.0, 14.0);
+    c.oblique.yaw_deg = Some(yaw + scale(rng, -15.0, 15.0));
+    c.oblique.tilt_deg = Some(tilt + scale(rng, -5.0, 12.0));
+    c.oblique.focal_px = Some(f64::from(data.width) * scale(rng, 0.55, 1.3));
+    let density = scale(rng, 0.5, 2.5);
+    c.road.inflow_veh_per_h *= density;
+    c.intersection.inflow_veh_per_h_per_approach *= density;
+    c.crossing.inflow_veh_per_h_per_direction *= density;
+    let walkers = scale(rng, 0.5, 3.0);
+    c.intersection.pedestrian_groups_per_min_per_entry *= walkers;
+    c.crossing.pedestrian_groups_per_min_per_entry *= walkers;
+    if rng.random_bool(0.5) {
+        c.vehicles.colours = (0..9)
+            .map(|i| FleetColour {
+                name: format!("c{i}"),
+                share: scale(rng, 0.05, 1.0),
+                rgb: [rng.random(), rng.random(), rng.random()],
+            })
+            .collect();
+    }
+    c.render.noise_sd = scale(rng, 0.0, 8.0);
+    c.render.shadows = rng.random_bool(0.8);
+    c.render.sun_azimuth_deg = scale(rng, 0.0, 360.0);
+    c.render.sun_elevation_deg = scale(rng, 25.0, 80.0);
+    c
+}
+
+/// Per-channel gain and offset, a light blur and a JPEG round trip at a random quality.
+pub fn corrupt(image: &mut RgbImage, rng: &mut impl rand::Rng) -> Result<()> {
+    let gain = scale(rng, 0.6, 1.3);
+    let g: [f64; 3] = std::array::from_fn(|_| gain * scale(rng, 0.9, 1.1));
+    let offset = scale(rng, -20.0, 20.0);
+    for p in image.pixels_mut() {
+        for (v, gc) in p.0.iter_mut().zip(g) {
+            *v = (f64::from(*v) * gc + offset).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    if rng.random_bool(0.3) {
+        *image = blur121(image);
+    }
+    if rng.random_bool(0.7) {
+        let quality = rng.random_range(25..=95u8);
+        let mut bytes = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality)
+            .encode_image(image)
+            .map_err(|e| roadtrack::Error::Invalid(format!("JPEG encoding: {e}")))?;
+        *image = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
+            .map_err(|e| roadtrack::Error::Invalid(format!("JPEG decoding: {e}")))?
+            .to_rgb8();
+    }
+    Ok(())
+}
+
+/// The separable `[1, 2, 1] / 4` blur, edges replicated.
+fn blur121(image: &RgbImage) -> RgbImage {
+    let (w, h) = image.dimensions();
+    let pass = |src: &RgbImage, dx: i64, dy: i64| {
+        RgbImage::from_fn(w, h, |x, y| {
+            let at = |k: i64| {
+                let xx = (i64::from(x) + k * dx).clamp(0, i64::from(w) - 1) as u32;
+                let yy = (i64::from(y) + k * dy).clamp(0, i64::from(h) - 1) as u32;
+                src.get_pixel(xx, yy).0
+            };
+            let (a, b, c) = (at(-1), at(0), at(1));
+            image::Rgb(std::array::from_fn(|i| {
+                ((u16::from(a[i]) + 2 * u16::from(b[i]) + u16::from(c[i]) + 2) / 4) as u8
+            }))
+        })
+    };
+    pass(&pass(image, 1, 0), 0, 1)
+}
+
+/// Renders one episode: a simulation of [`random_sim_config`] with seed `sim_seed`, each
+/// frame corrupted ([`corrupt`]).
+///
+/// # Errors
+/// The simulator rejects the configuration (should not happen) or JPEG coding fails.
+pub fn render_episode(
+    sim_seed: u64,
+    rng: &mut impl rand::Rng,
+    data: &DataConfig,
+) -> Result<Vec<TrainFrame>> {
+    let config = random_sim_config(rng, data);
+    let sim = Simulation::new(&config, sim_seed)?;
+    let mut frames = Vec::new();
+    for step in sim {
+        let step = step?;
+        let mut image = step.frame.image;
+        corrupt(&mut image, rng)?;
+        let objects = step
+            .truth
+            .iter()
+            .filter_map(|t| {
+                Some(Object {
+                    bbox: t.bbox,
+                    channel: class_channel(&t.class)?,
+                    visibility: t.visibility,
+                })
+            })
+            .collect();
+        frames.push(TrainFrame { image, objects });
+    }
+    Ok(frames)
+}
+
+/// One training sample: the preprocessed crop and its targets on the `G × G` output grid
+/// (`G = crop / 4`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// `3 × S × S` network input.
+    pub input: Vec<f32>,
+    /// `4 × G × G`: 1 at object centres (positives of the focal loss).
+    pub pos: Vec<f32>,
+    /// `4 × G × G`: the negatives' focal-loss weight `(1 − y)⁴` (0 at centres and near
+    /// barely visible objects).
+    pub neg_weight: Vec<f32>,
+    /// `4 × G × G`: `ln(w/4)`, `ln(h/4)`, `dx`, `dy` at centres.
+    pub reg: Vec<f32>,
+    /// `4 × G × G`: 1 at centres (all four planes).
+    pub reg_mask: Vec<f32>,
+    /// Number of centres.
+    pub n_pos: usize,
+}
+
+/// A crop of `frame` at a random place (near a random object 70 % of the time) and scale
+/// (0.7–1.4 frame px per crop px), mirrored half of the time, with its targets.
+pub fn make_sample(
+    frame: &TrainFrame,
+    rng: &mut impl rand::Rng,
+    data: &DataConfig,
+    prep: &Preprocessing,
+) -> Sample {
+    let s = data.crop;
+    let g = s / STRIDE;
+    let (fw, fh) = (
+        f64::from(frame.image.width()),
+        f64::from(frame.image.height()),
+    );
+    let sc = scale(rng, 0.7, 1.4);
+    let span = s as f64 * sc;
+    let usable: Vec<&Object> = frame
+        .objects
+        .iter()
+        .filter(|o| o.visibility >= data.min_visibility)
+        .collect();
+    let (cx, cy) = if !usable.is_empty() && rng.random_bool(0.7) {
+        let o = usable[rng.random_range(0..usable.len())];
+        let c = o.bbox.centre();
+        (
+            c.x + scale(rng, -0.4, 0.4) * span,
+            c.y + scale(rng, -0.4, 0.4) * span,
+        )
+    } else {
+        (scale(rng, 0.0, fw.max(1.0)), scale(rng, 0.0, fh.max(1.0)))
+    };
+    let x0 = (cx - span / 2.0).clamp(0.0, (fw - span).max(0.0));
+    let y0 = (cy - span / 2.0).clamp(0.0, (fh - span).max(0.0));
+    let flip = rng.random_bool(0.5);
+
+    // Bilinear resampling, pixel centres aligned; outside the frame: edge replicated.
+    let mut input = vec![0.0f32; 3 * s * s];
+    let gain: [f32; 3] = std::array::from_fn(|c| prep.input_scale / prep.std[c]);
+    let off: [f32; 3] = std::array::from_fn(|c| -prep.mean[c] / prep.std[c]);
+    let (iw, ih) = (frame.image.width() as i64, frame.image.height() as i64);
+    for v in 0..s {
+        let fy = y0 + (v as f64 + 0.5) * sc - 0.5;
+        let (y_a, ty) = (fy.floor(), fy - fy.floor());
+        let ya = (y_a as i64).clamp(0, ih - 1) as u32;
+        let yb = (y_a as i64 + 1).clamp(0, ih - 1) as u32;
+        for u in 0..s {
+            let uu = if flip { s - 1 - u } else { u };
+            let fx = x0 + (uu as f64 + 0.5) * sc - 0.5;
+            let (x_a, tx) = (fx.floor(), fx - fx.floor());
+            let xa = (x_a as i64).clamp(0, iw - 1) as u32;
+            let xb = (x_a as i64 + 1).clamp(0, iw - 1) as u32;
+            let p00 = frame.image.get_pixel(xa, ya).0;
+            let p01 = frame.image.get_pixel(xb, ya).0;
+            let p10 = frame.image.get_pixel(xa, yb).0;
+            let p11 = frame.image.get_pixel(xb, yb).0;
+            for c in 0..3 {
+                let top = f64::from(p00[c]) * (1.0 - tx) + f64::from(p01[c]) * tx;
+                let bot = f64::from(p10[c]) * (1.0 - tx) + f64::from(p11[c]) * tx;
+                let val = (top * (1.0 - ty) + bot * ty) as f32;
+                input[c * s * s + v * s + u] = gain[c] * val + off[c];
+            }
+        }
+    }
+
+    let plane = g * g;
+    let mut heat = vec![0.0f32; CLASSES * plane];
+    let mut ignore = vec![1.0f32; plane];
+    let mut pos = vec![0.0f32; CLASSES * plane];
+    let mut reg = vec![0.0f32; 4 * plane];
+    let mut reg_mask = vec![0.0f32; 4 * plane];
+    let st = STRIDE as f64;
+    // Larger objects first, so a small object sharing a centre cell keeps its box targets.
+    let mut objs: Vec<&Object> = frame.objects.iter().collect();
+    objs.sort_by(|a, b| (b.bbox.width * b.bbox.height).total_cmp(&(a.bbox.width * a.bbox.height)));
+    for o in objs {
+        let c = o.bbox.centre();
+        let mut ox = (c.x - x0) / sc;
+        let oy = (c.y - y0) / sc;
+        if flip {
+            ox = s as f64 - ox;
+        }
+        let (w, h) = ((o.bbox.width / sc).max(1.0), (o.bbox.height / sc).max(1.0));
+        if !(0.0..s as f64).contains(&ox) || !(0.0..s as f64).contains(&oy) {
+            continue;
+        }
+        let (gx, gy) = (ox / st, oy / st);
+        let (ix, iy) = (gx.floor() as usize, gy.floor() as usize);
+        if ix >= g || iy >= g {
+            continue;
+        }
+        // TTFNet's elliptical Gaussian: σ = 0.54 · size / 6 (cells), at least 0.5.
+        let sx = (0.54 * w / st / 6.0).max(0.5);
+        let sy = (0.54 * h / st / 6.0).max(0.5);
+        let rx = (3.0 * sx).ceil() as i64;
+        let ry = (3.0 * sy).ceil() as i64;
+        let visible = o.visibility >= data.min_visibility;
+        for dy in -ry..=ry {
+            for dx in -rx..=rx {
+                let (x, y) = (ix as i64 + dx, iy as i64 + dy);
+                if x < 0 || y < 0 || x >= g as i64 || y >= g as i64 {
+                    continue;
+                }
+                let i = y as usize * g + x as usize;
+                if visible {
+                    let e = (-(dx * dx) as f64 / (2.0 * sx * sx)
+                        - (dy * dy) as f64 / (2.0 * sy * sy))
+                        .exp() as f32;
+                    let k = o.channel * plane + i;
+                    heat[k] = heat[k].max(e);
+                } else {
+                    ignore[i] = 0.0;
+                }
+            }
+        }
+        if visible {
+            let i = iy * g + ix;
+            pos[o.channel * plane + i] = 1.0;
+            let t = [(w / st).ln(), (h / st).ln(), gx - ix as f64, gy - iy as f64];
+            for (j, v) in t.iter().enumerate() {
+                reg[j * plane + i] = *v as f32;
+                reg_mask[j * plane + i] = 1.0;
+            }
+        }
+    }
+    let mut neg_weight = vec![0.0f32; CLASSES * plane];
+    for k in 0..CLASSES {
+        for (i, keep) in ignore.iter().enumerate() {
+            let j = k * plane + i;
+            if pos[j] == 0.0 {
+                neg_weight[j] = (1.0 - heat[j]).powi(4) * keep;
+            }
+        }
+    }
+    let n_pos = pos.iter().filter(|&&v| v > 0.0).count();
+    Sample {
+        input,
+        pos,
+        neg_weight,
+        reg,
+        reg_mask,
+        n_pos,
+    }
+}
