@@ -367,3 +367,15 @@ fn reject_onnx_flags(onnx: &crate::onnx_detector::OnnxArgs) -> Result<()> {
     given.push(("--detector-model", onnx.detector_model.is_some()));
     crate::flags::reject_given(&given, "only with --detector onnx")
 }
+
+/// The detector's name as `--detector` spells it (`file` for `--detections F` alone).
+pub fn detector_name(args: &DetectorArgs) -> String {
+    use clap::ValueEnum;
+    let kind = if args.is_file() {
+        Some(DetectorArg::File)
+    } else {
+        args.detector
+    };
+    kind.and_then(|k| k.to_possible_value())
+        .map_or("background".into(), |v| v.get_name().to_owned())
+}

@@ -15,4 +15,3 @@ pub mod simulate;
 pub mod sweep;
 pub mod track;
 pub mod train;
-pub mod train_detector;

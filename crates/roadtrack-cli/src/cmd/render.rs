@@ -74,7 +74,10 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             t.file_name()
                 .map_or("tracks".into(), |n| n.to_string_lossy().into_owned())
         ),
-        None => format!("detections: {}", detector_name(&args.detector)),
+        None => format!(
+            "detections: {}",
+            crate::common::detector_name(&args.detector)
+        ),
     };
     let drawing_detections = args.tracks.is_none();
     let config = RenderConfig {
@@ -168,18 +171,6 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         Some(&args.output),
     )?;
     Ok(())
-}
-
-/// The detector's name as `--detector` spells it (`file` for `--detections F` alone).
-pub fn detector_name(args: &DetectorArgs) -> String {
-    use clap::ValueEnum;
-    let kind = if args.is_file() {
-        Some(crate::common::DetectorArg::File)
-    } else {
-        args.detector
-    };
-    kind.and_then(|k| k.to_possible_value())
-        .map_or("background".into(), |v| v.get_name().to_owned())
 }
 
 /// Each frame's detections drawn as they are: one point per detection, numbered within the

@@ -304,7 +304,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         fps,
         seed: cfg.seed,
         cycle_s: cycle_s(&sim_cfg),
-        detector: crate::cmd::render::detector_name(&cfg.detector),
+        detector: crate::common::detector_name(&cfg.detector),
         detector_given: cfg.detector.detector.is_some() || cfg.detector.is_file(),
     };
     let page = report::page(&facts, &truth_analysis, &runs);

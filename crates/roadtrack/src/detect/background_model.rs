@@ -283,9 +283,14 @@ impl BackgroundModel {
                 });
             }
         }
+        let spread = super::startup::Spread {
+            threshold_sigma: config.threshold_sigma,
+            min_sigma: config.min_sigma,
+            max_sigma: config.max_sigma,
+        };
         let (mean, var) = match config.startup {
-            Startup::Median => super::startup::median(samples, &config),
-            Startup::Persistent => super::startup::persistent(samples, &config),
+            Startup::Median => super::startup::median(samples, &spread),
+            Startup::Persistent => super::startup::persistent(samples, &spread),
         };
         let n_px = var.len();
         Ok(Self {

@@ -22,12 +22,22 @@
 //! levels of RGB distance with the defaults): samples closer than that would never be
 //! foreground against each other, and half leaves a margin for noise and slow drift.
 
-use super::background_model::BackgroundConfig;
+/// What the start-up needs of the background model's config (`BackgroundConfig`'s fields of
+/// the same names): the match threshold and the bounds on each pixel's standard deviation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spread {
+    /// Match threshold, in standard deviations.
+    pub threshold_sigma: f64,
+    /// Lower bound on a pixel's standard deviation.
+    pub min_sigma: f64,
+    /// Upper bound on a pixel's standard deviation.
+    pub max_sigma: f64,
+}
 use image::RgbImage;
 
 /// Per-pixel median and variance from the median absolute deviation: `(mean, var)`, 3 and
 /// 1 values per pixel. `samples` is non-empty and of one size.
-pub fn median(samples: &[RgbImage], config: &BackgroundConfig) -> (Vec<f32>, Vec<f32>) {
+pub fn median(samples: &[RgbImage], config: &Spread) -> (Vec<f32>, Vec<f32>) {
     let n_px = samples.first().map_or(0, |s| s.as_raw().len() / 3);
     let mut mean = vec![0f32; n_px * 3];
     let mut var = vec![0f32; n_px];
@@ -67,14 +77,14 @@ fn median_u8(sorted: &[u8]) -> f32 {
 }
 
 /// The cluster radius of [`persistent`], RGB distance.
-pub fn persistent_radius(config: &BackgroundConfig) -> f64 {
+pub fn persistent_radius(config: &Spread) -> f64 {
     config.threshold_sigma * 3f64.sqrt() * config.min_sigma / 2.0
 }
 
 /// Per-pixel most persistent colour (the densest cluster of samples, see the module
 /// documentation) and its variance: `(mean, var)`, 3 and 1 values per pixel. `samples`
 /// is non-empty and of one size. Ties go to the earliest sample (deterministic).
-pub fn persistent(samples: &[RgbImage], config: &BackgroundConfig) -> (Vec<f32>, Vec<f32>) {
+pub fn persistent(samples: &[RgbImage], config: &Spread) -> (Vec<f32>, Vec<f32>) {
     let n_px = samples.first().map_or(0, |s| s.as_raw().len() / 3);
     let n = samples.len();
     let r = persistent_radius(config);
@@ -143,6 +153,13 @@ mod tests {
     use super::*;
     use image::Rgb;
 
+    /// `BackgroundConfig::default()`'s values.
+    const DEFAULTS: Spread = Spread {
+        threshold_sigma: 3.0,
+        min_sigma: 8.0,
+        max_sigma: 40.0,
+    };
+
     fn plain(rgb: [u8; 3]) -> RgbImage {
         RgbImage::from_pixel(4, 3, Rgb(rgb))
     }
@@ -157,7 +174,7 @@ mod tests {
             samples.push(plain(c));
             samples.push(plain(c));
         }
-        let cfg = BackgroundConfig::default();
+        let cfg = DEFAULTS;
         let (m, _) = persistent(&samples, &cfg);
         assert_eq!(&m[..3], &[100.0, 100.0, 100.0]);
         let (med, _) = median(&samples, &cfg);
@@ -171,7 +188,7 @@ mod tests {
             plain([104, 100, 100]),
             plain([250, 0, 0]),
         ];
-        let cfg = BackgroundConfig::default();
+        let cfg = DEFAULTS;
         let (m, v) = persistent(&samples, &cfg);
         assert_eq!(&m[..3], &[102.0, 100.0, 100.0]);
         assert_eq!(v[0], 64.0);

@@ -1,5 +1,8 @@
 //! `roadtrack train`: train the small CNN classifier used as a likelihood (METHODS.md §3).
 
+/// `roadtrack train --detector`: the learned detector (crate roadtrack-learn).
+pub mod detector;
+
 use crate::common::Ui;
 #[cfg(feature = "cnn")]
 use anyhow::Context;
@@ -42,7 +45,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["positives", "negatives", "sequence", "epochs", "train_fraction", "input_size", "max_positives", "report"])]
     pub detector: bool,
     #[command(flatten)]
-    pub detector_args: super::train_detector::DetectorTrainArgs,
+    pub detector_args: detector::DetectorTrainArgs,
     /// Output ONNX model (--detector: written at every checkpoint too).
     #[arg(short, long, default_value = "model.onnx")]
     pub output: PathBuf,
@@ -113,18 +116,18 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
 #[cfg(not(feature = "cnn"))]
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if args.detector {
-        return super::train_detector::run(&args, ui);
+        return detector::run(&args, ui);
     }
-    super::train_detector::reject_detector_flags(&args.detector_args)?;
+    detector::reject_detector_flags(&args.detector_args)?;
     bail!(NO_CNN)
 }
 
 #[cfg(feature = "cnn")]
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if args.detector {
-        return super::train_detector::run(&args, ui);
+        return detector::run(&args, ui);
     }
-    super::train_detector::reject_detector_flags(&args.detector_args)?;
+    detector::reject_detector_flags(&args.detector_args)?;
     let mut config = TrainConfig::preset(args.preset);
     config.seed = args.seed;
     if let Some(v) = args.epochs {

@@ -50,7 +50,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
 /// Without the `learn` feature there is no trainer (`--from-weights` still converts when
 /// the `cnn` feature is on).
 #[cfg(not(feature = "learn"))]
-pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
+pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     #[cfg(feature = "cnn")]
     if let Some(path) = &args.detector_args.from_weights {
         use anyhow::Context as _;
@@ -71,7 +71,7 @@ pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
 
 /// Trains and writes the detector.
 #[cfg(feature = "learn")]
-pub fn run(args: &super::train::Args, ui: &Ui) -> Result<()> {
+pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     use anyhow::Context as _;
     use roadtrack_learn::{Progress, TrainConfig, train};
     use std::io::Write as _;
