@@ -17,7 +17,8 @@ use super::onnx::float_tensor;
 use super::window::Preprocessing;
 use roadtrack::error::Result;
 
-fn ints(name: &str, v: &[i64]) -> pb::AttributeProto {
+/// An ONNX attribute holding a list of integers (also used by `centernet`).
+pub(crate) fn ints(name: &str, v: &[i64]) -> pb::AttributeProto {
     pb::AttributeProto {
         name: name.into(),
         r#type: pb::attribute_proto::AttributeType::Ints as i32,
@@ -35,7 +36,8 @@ fn int(name: &str, v: i64) -> pb::AttributeProto {
     }
 }
 
-fn node(
+/// An ONNX node with one output, named after it (also used by `centernet`).
+pub(crate) fn node(
     op: &str,
     inputs: &[&str],
     output: &str,

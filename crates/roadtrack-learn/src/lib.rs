@@ -8,7 +8,7 @@
 //!
 //! See docs/DETECTION.md "Learned detector" for the recipe and its cost.
 
-pub mod arch;
+pub use roadtrack::detect::centernet as arch;
 pub mod data;
 pub mod net;
 pub mod parity;

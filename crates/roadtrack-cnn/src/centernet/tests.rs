@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::detector::decode::Candidate;
+use roadtrack::error::Error;
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> PathBuf {

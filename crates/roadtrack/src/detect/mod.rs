@@ -8,6 +8,7 @@
 
 pub mod background;
 pub mod background_model;
+pub mod centernet;
 pub mod file;
 pub mod regions;
 pub mod split;

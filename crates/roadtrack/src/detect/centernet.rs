@@ -1,9 +1,9 @@
-//! The learned detector's architecture, as `roadtrack_cnn::centernet` has it (a copy, so
-//! that training does not build tract; `roadtrack-cli`'s tests check that the two layer
-//! lists agree), and the trained weights in a JSON form `roadtrack_cnn` reads.
+//! The learned detector's architecture (issue 13): layer list, class channels, and the
+//! trained weights in JSON. Shared by the trainer (`roadtrack-learn`, burn) and the
+//! inference (`roadtrack_cnn::centernet`, tract), so neither depends on the other's engine.
 
-use roadtrack::class::ObjectClass;
-use roadtrack::error::{Error, Result};
+use crate::class::ObjectClass;
+use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Input preprocessing `(pixel · input_scale − mean[c]) / std[c]`, RGB (the fields of
@@ -208,12 +208,23 @@ pub struct CenterNetWeights {
 }
 
 impl CenterNetWeights {
-    /// The weights as JSON (what `roadtrack_cnn::centernet::CenterNetWeights` reads).
+    /// The weights as JSON (what [`CenterNetWeights::from_json`] reads).
     ///
     /// # Errors
     /// Never in practice (serialisation of plain numbers).
     pub fn to_json(&self) -> Result<String> {
         serde_json::to_string(self).map_err(|e| Error::Invalid(format!("weights to JSON: {e}")))
+    }
+
+    /// Weights from the JSON `roadtrack-learn` writes ([`CenterNetWeights::to_json`]).
+    ///
+    /// # Errors
+    /// Malformed JSON or weights that do not match the shape.
+    pub fn from_json(text: &str) -> Result<Self> {
+        let w: Self = serde_json::from_str(text)
+            .map_err(|e| Error::Invalid(format!("detector weights JSON: {e}")))?;
+        w.validate()?;
+        Ok(w)
     }
 
     /// Checks the weight counts against the shape.
