@@ -171,6 +171,22 @@ struct Object {
     estimate: (Point, Point, f64),
 }
 
+impl Object {
+    /// The weighted mean as the estimate, then `rho` particles resampled with equal weights
+    /// (the end of both updates, image and detections).
+    fn estimate_and_resample(&mut self, scheme: ResamplingScheme, rho: usize) {
+        let p = &mut self.particles;
+        if let Some(e) = p.weighted_mean(0..p.len()) {
+            self.estimate = e;
+        }
+        let mut anc = Vec::with_capacity(rho);
+        resample(scheme, &p.w, rho, &mut self.rng, &mut anc);
+        if anc.len() == rho {
+            p.select(&anc, 1.0 / rho as f64);
+        }
+    }
+}
+
 /// The basic particle filter over frames.
 pub struct ParticleFilterTracker {
     config: ParticleFilterConfig,
@@ -299,14 +315,7 @@ impl ParticleFilterTracker {
                 // Choice: with no support anywhere, coast on the prediction (equal weights).
                 p.w.iter_mut().for_each(|w| *w = 1.0);
             }
-            if let Some(e) = p.weighted_mean(0..p.len()) {
-                o.estimate = e;
-            }
-            let mut anc = Vec::with_capacity(rho);
-            resample(cfg.resampling, &p.w, rho, &mut o.rng, &mut anc);
-            if anc.len() == rho {
-                p.select(&anc, 1.0 / rho as f64);
-            }
+            o.estimate_and_resample(cfg.resampling, rho);
         });
         self.times.resample += t0.elapsed();
 
@@ -414,14 +423,7 @@ impl ParticleFilterTracker {
                 if p.total_weight() <= 0.0 || !p.total_weight().is_finite() {
                     p.w.iter_mut().for_each(|w| *w = 1.0);
                 }
-                if let Some(e) = p.weighted_mean(0..p.len()) {
-                    o.estimate = e;
-                }
-                let mut anc = Vec::with_capacity(rho);
-                resample(cfg.resampling, &p.w, rho, &mut o.rng, &mut anc);
-                if anc.len() == rho {
-                    p.select(&anc, 1.0 / rho as f64);
-                }
+                o.estimate_and_resample(cfg.resampling, rho);
             });
         self.times.update += t0.elapsed();
 

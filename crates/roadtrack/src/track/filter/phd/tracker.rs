@@ -1,7 +1,9 @@
 //! [`PhdTracker`]: the labelled SMC-PHD filter on frames with an image likelihood.
 
 use super::super::SurveillanceRegion;
-use super::{BoxMeasurement, DetectionModel, FilterStageTimes, LabelledPhd, PhdConfig};
+use super::{
+    BoxMeasurement, DetectionModel, FilterStageTimes, LabelEstimate, LabelledPhd, PhdConfig,
+};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::geometry::{BBox, Point};
@@ -18,6 +20,20 @@ enum Start {
     At(Vec<(Point, Point)>),
     /// Step a): uniform particles weighted by `h`, k-means with this many objects.
     Uniform(usize),
+}
+
+/// A reported label as a track point: a box of the configured size around its position,
+/// its weight (capped at 1) as the score.
+fn estimate_point(config: &PhdConfig, frame: &Frame, e: &LabelEstimate) -> TrackPoint {
+    TrackPoint {
+        frame: frame.index,
+        time_s: frame.time_s,
+        id: u64::from(e.label),
+        class: config.class.clone(),
+        bbox: BBox::from_centre(e.pos, config.object_width_px, config.object_height_px),
+        score: e.weight.min(1.0),
+        ground: None,
+    }
 }
 
 /// The labelled SMC-PHD filter on frames with an image likelihood (METHODS.md §3): grid
@@ -228,19 +244,7 @@ impl PhdTracker {
             filter
                 .estimates()
                 .into_iter()
-                .map(|e| TrackPoint {
-                    frame: frame.index,
-                    time_s: frame.time_s,
-                    id: u64::from(e.label),
-                    class: self.config.class.clone(),
-                    bbox: BBox::from_centre(
-                        e.pos,
-                        self.config.object_width_px,
-                        self.config.object_height_px,
-                    ),
-                    score: e.weight.min(1.0),
-                    ground: None,
-                })
+                .map(|e| estimate_point(&self.config, frame, &e))
                 .collect()
         })
     }
@@ -332,19 +336,7 @@ impl PhdTracker {
         let out = filter
             .estimates()
             .into_iter()
-            .map(|e| TrackPoint {
-                frame: frame.index,
-                time_s: frame.time_s,
-                id: u64::from(e.label),
-                class: self.config.class.clone(),
-                bbox: BBox::from_centre(
-                    e.pos,
-                    self.config.object_width_px,
-                    self.config.object_height_px,
-                ),
-                score: e.weight.min(1.0),
-                ground: None,
-            })
+            .map(|e| estimate_point(&self.config, frame, &e))
             .collect();
         filter.resample();
         self.times.resample += t0.elapsed();
