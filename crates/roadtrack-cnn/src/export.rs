@@ -140,15 +140,9 @@ pub fn onnx_model(
     if let Some(ws) = window_scale {
         meta.push(("roadtrack.window_scale", format!("{ws}")));
     }
-    pb::ModelProto {
-        ir_version: 8,
-        opset_import: vec![pb::OperatorSetIdProto {
-            domain: String::new(),
-            version: 13,
-        }],
-        producer_name: "roadtrack train".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        graph: Some(pb::GraphProto {
+    opset13_model(
+        "roadtrack train",
+        pb::GraphProto {
             node: nodes,
             name: "roadtrack_tiny_cnn".into(),
             initializer,
@@ -158,7 +152,27 @@ pub fn onnx_model(
             )],
             output: vec![value_info("probabilities", &[None, Some(2)])],
             ..Default::default()
-        }),
+        },
+        meta,
+    )
+}
+
+/// An opset-13 ONNX model (IR 8) of `graph` with `meta` as its metadata (the `roadtrack.*`
+/// keys the loaders read), produced by `producer` of this version.
+pub(crate) fn opset13_model(
+    producer: &str,
+    graph: pb::GraphProto,
+    meta: Vec<(&str, String)>,
+) -> pb::ModelProto {
+    pb::ModelProto {
+        ir_version: 8,
+        opset_import: vec![pb::OperatorSetIdProto {
+            domain: String::new(),
+            version: 13,
+        }],
+        producer_name: producer.into(),
+        producer_version: env!("CARGO_PKG_VERSION").into(),
+        graph: Some(graph),
         metadata_props: meta
             .into_iter()
             .map(|(k, v)| pb::StringStringEntryProto {

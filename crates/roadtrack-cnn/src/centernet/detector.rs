@@ -11,7 +11,9 @@ use tract_onnx::prelude::*;
 
 use super::{CLASSES, INPUT_MULTIPLE, KIND, STRIDE, channel_class};
 use crate::detector::decode::{Candidate, nms};
-use crate::onnx::{metadata, model_error, read_image_model, tract_load};
+use crate::onnx::{
+    metadata, model_error, preprocessing_from_metadata, read_image_model, tract_load,
+};
 use crate::window::Preprocessing;
 use roadtrack::class::ObjectClass;
 use roadtrack::detect::{Detector, FrameDetections};
@@ -118,15 +120,6 @@ impl std::fmt::Debug for CenterNetDetector {
     }
 }
 
-fn parse_triple(s: &str) -> Option<[f32; 3]> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|t| t.trim().parse::<f32>())
-        .collect::<std::result::Result<_, _>>()
-        .ok()?;
-    <[f32; 3]>::try_from(v).ok()
-}
-
 impl CenterNetDetector {
     /// Loads a model written by `roadtrack train --detector`.
     ///
@@ -145,18 +138,7 @@ impl CenterNetDetector {
                  other detectors)",
             ));
         }
-        let d = Preprocessing::default();
-        let prep = Preprocessing {
-            input_scale: metadata(&proto, "roadtrack.input_scale")
-                .and_then(|s| s.parse().ok())
-                .unwrap_or(d.input_scale),
-            mean: metadata(&proto, "roadtrack.mean")
-                .and_then(parse_triple)
-                .unwrap_or(d.mean),
-            std: metadata(&proto, "roadtrack.std")
-                .and_then(parse_triple)
-                .unwrap_or(d.std),
-        };
+        let prep = preprocessing_from_metadata(&proto);
         prep.validate()?;
         let det = Self {
             path: path.to_path_buf(),

@@ -27,7 +27,7 @@ use std::path::Path;
 use prost::Message as _;
 use tract_onnx::pb;
 
-use super::export::{ints, node};
+use super::export::{ints, node, opset13_model};
 use super::onnx::float_tensor;
 use roadtrack::error::Result;
 
@@ -154,15 +154,9 @@ pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
         ("roadtrack.std", triple(p.std)),
     ];
     let out_dims = |c: i64| [None, Some(c), None, None];
-    Ok(pb::ModelProto {
-        ir_version: 8,
-        opset_import: vec![pb::OperatorSetIdProto {
-            domain: String::new(),
-            version: 13,
-        }],
-        producer_name: "roadtrack train --detector".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        graph: Some(pb::GraphProto {
+    Ok(opset13_model(
+        "roadtrack train --detector",
+        pb::GraphProto {
             node: nodes,
             name: "roadtrack_centernet".into(),
             initializer,
@@ -176,16 +170,9 @@ pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
                 value_info("boxes", &out_dims(4), &["N", "H4", "W4"]),
             ],
             ..Default::default()
-        }),
-        metadata_props: meta
-            .into_iter()
-            .map(|(k, v)| pb::StringStringEntryProto {
-                key: k.into(),
-                value: v,
-            })
-            .collect(),
-        ..Default::default()
-    })
+        },
+        meta,
+    ))
 }
 
 /// The ONNX bytes of `net` ([`onnx_model`]).

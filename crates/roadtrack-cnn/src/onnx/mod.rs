@@ -115,6 +115,24 @@ pub(crate) fn metadata<'a>(proto: &'a pb::ModelProto, key: &str) -> Option<&'a s
         .map(|p| p.value.as_str())
 }
 
+/// The preprocessing a model's metadata gives (`roadtrack.input_scale`, `roadtrack.mean`,
+/// `roadtrack.std`, as `roadtrack train` writes them); the default for each key missing or
+/// unreadable.
+pub(crate) fn preprocessing_from_metadata(proto: &pb::ModelProto) -> Preprocessing {
+    let d = Preprocessing::default();
+    Preprocessing {
+        input_scale: metadata(proto, "roadtrack.input_scale")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d.input_scale),
+        mean: metadata(proto, "roadtrack.mean")
+            .and_then(parse_triple)
+            .unwrap_or(d.mean),
+        std: metadata(proto, "roadtrack.std")
+            .and_then(parse_triple)
+            .unwrap_or(d.std),
+    }
+}
+
 fn parse_triple(s: &str) -> Option<[f32; 3]> {
     let v: Vec<f32> = s
         .split(',')
@@ -290,20 +308,9 @@ impl OnnxClassifier {
                 serde_json::from_str(&format!("\"{}\"", metadata(&proto, "roadtrack.output")?)).ok()
             })
             .unwrap_or(OutputKind::Probabilities);
-        let prep = config.preprocessing.unwrap_or_else(|| {
-            let d = Preprocessing::default();
-            Preprocessing {
-                input_scale: metadata(&proto, "roadtrack.input_scale")
-                    .and_then(|s| s.parse().ok())
-                    .unwrap_or(d.input_scale),
-                mean: metadata(&proto, "roadtrack.mean")
-                    .and_then(parse_triple)
-                    .unwrap_or(d.mean),
-                std: metadata(&proto, "roadtrack.std")
-                    .and_then(parse_triple)
-                    .unwrap_or(d.std),
-            }
-        });
+        let prep = config
+            .preprocessing
+            .unwrap_or_else(|| preprocessing_from_metadata(&proto));
         prep.validate()?;
         let window_scale = config
             .window_scale
