@@ -20,7 +20,8 @@ pub struct BackgroundDetectorConfig {
     pub background: BackgroundConfig,
     /// Mask clean-up and region size limits.
     pub regions: RegionConfig,
-    /// Splitting regions that hold several vehicles (needs `calibration`).
+    /// Splitting regions that hold several vehicles (needs `calibration`) or people side by
+    /// side (`columns`).
     pub split: SplitConfig,
     /// The camera's ground calibration, when known (`--calibration`; not part of the TOML):
     /// gives the expected vehicle size for [`SplitConfig`].
@@ -49,6 +50,7 @@ impl BackgroundDetectorConfig {
     pub fn as_published(mut self) -> Self {
         self.background = self.background.as_published();
         self.split.enabled = false;
+        self.split.columns = false;
         self
     }
 }
@@ -149,6 +151,7 @@ impl BackgroundDetector {
             &frame.image,
             &self.config.regions,
             self.splitter.as_ref(),
+            self.config.split.columns.then_some(&self.config.split),
         );
         Ok(Foreground { mask, regions })
     }

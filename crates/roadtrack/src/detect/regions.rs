@@ -158,7 +158,7 @@ pub fn extract_regions(
     image: &image::RgbImage,
     config: &RegionConfig,
 ) -> Vec<Region> {
-    extract_regions_split(mask, image, config, None)
+    extract_regions_split(mask, image, config, None, None)
 }
 
 /// Running sums of one region's pixels.
@@ -250,14 +250,16 @@ impl Acc {
     }
 }
 
-/// [`extract_regions`], then each region kept is cut by `splitter` (when given) into the
-/// vehicles it holds (module [`super::split`]); pieces are regions of their own, ordered
-/// with the others by first pixel.
+/// [`extract_regions`], then each region kept is cut at the valleys of its column profile
+/// when `columns` is given (people side by side, module [`super::columns`]), else by
+/// `splitter` (when given) into the vehicles it holds (module [`super::split`]); pieces are
+/// regions of their own, ordered with the others by first pixel.
 pub fn extract_regions_split(
     mask: &image::GrayImage,
     image: &image::RgbImage,
     config: &RegionConfig,
     splitter: Option<&super::split::Splitter>,
+    columns: Option<&super::split::SplitConfig>,
 ) -> Vec<Region> {
     use imageproc::region_labelling::{Connectivity, connected_components};
     let labels = connected_components(mask, Connectivity::Eight, image::Luma([0u8]));
@@ -277,19 +279,47 @@ pub fn extract_regions_split(
     }
     let keep =
         |a: &Acc| a.n >= u64::from(config.min_area_px) && a.n <= u64::from(config.max_area_px);
-    let Some(splitter) = splitter else {
+    if splitter.is_none() && columns.is_none() {
         return acc
             .iter()
             .skip(1)
             .filter(|a| keep(a))
             .map(Acc::region)
             .collect();
-    };
+    }
     let mut pieces: Vec<Acc> = Vec::with_capacity(n);
     for (l, a) in acc.iter().enumerate().skip(1) {
         if !keep(a) {
             continue;
         }
+        if let Some(cfg) = columns {
+            let mut counts = vec![0u32; (a.x1 - a.x0 + 1) as usize];
+            for y in a.y0..=a.y1 {
+                for x in a.x0..=a.x1 {
+                    if labels.get_pixel(x, y)[0] as usize == l {
+                        counts[(x - a.x0) as usize] += 1;
+                    }
+                }
+            }
+            let cuts = super::columns::column_cuts(&counts, f64::from(a.y1 - a.y0 + 1), cfg);
+            if !cuts.is_empty() {
+                let mut parts = vec![Acc::EMPTY; cuts.len() + 1];
+                for y in a.y0..=a.y1 {
+                    for x in a.x0..=a.x1 {
+                        if labels.get_pixel(x, y)[0] as usize == l {
+                            let k = cuts.partition_point(|&cut| cut <= (x - a.x0) as usize);
+                            parts[k].add(x, y, w, img_ok.then(|| image.get_pixel(x, y)));
+                        }
+                    }
+                }
+                pieces.extend(parts.into_iter().filter(|p| p.n > 0));
+                continue;
+            }
+        }
+        let Some(splitter) = splitter else {
+            pieces.push(*a);
+            continue;
+        };
         let c = a.centroid();
         let u = a.axis();
         let t_of =

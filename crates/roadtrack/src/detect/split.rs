@@ -28,7 +28,9 @@ use crate::calibration::Calibration;
 use crate::geometry::Point;
 use serde::{Deserialize, Serialize};
 
-/// Parameters of region splitting (`[split]`; used only with a calibration).
+/// Parameters of region splitting (`[split]`): the row cutter for queued vehicles (needs a
+/// calibration) and the column cutter for people side by side (module
+/// [`super::columns`]; needs none).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SplitConfig {
@@ -50,6 +52,19 @@ pub struct SplitConfig {
     pub gap_m: f64,
     /// Most pieces one region is cut into. Default 6.
     pub max_pieces: u32,
+    /// Cut regions at the valleys of their column profile (people walking side by side;
+    /// module [`super::columns`]). Needs no calibration. Default false (it would cut a
+    /// vehicle whose mask has a dark gap across it; `configs/detect-pedestrians.toml` turns
+    /// it on). A region cut by columns is not cut by rows.
+    pub columns: bool,
+    /// A valley is at most this fraction of the lower peak beside it. Default 0.5.
+    pub column_valley_ratio: f64,
+    /// Each side of a valley peaks at least this fraction of the region's highest column.
+    /// Default 0.5.
+    pub column_min_peak: f64,
+    /// Narrowest piece, as a fraction of the region's height (a person is about 0.3–0.45
+    /// as wide as tall). Default 0.2.
+    pub column_min_width: f64,
 }
 
 impl Default for SplitConfig {
@@ -61,6 +76,10 @@ impl Default for SplitConfig {
             vehicle_height_m: 1.5,
             gap_m: 2.0,
             max_pieces: 6,
+            columns: false,
+            column_valley_ratio: 0.5,
+            column_min_peak: 0.5,
+            column_min_width: 0.2,
         }
     }
 }
@@ -89,6 +108,19 @@ impl SplitConfig {
                     "SplitConfig",
                     f,
                     format!("must be finite and ≥ 0, found {v}"),
+                ));
+            }
+        }
+        for (v, f) in [
+            (self.column_valley_ratio, "column_valley_ratio"),
+            (self.column_min_peak, "column_min_peak"),
+            (self.column_min_width, "column_min_width"),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+                return Err(crate::Error::config(
+                    "SplitConfig",
+                    f,
+                    format!("must be in (0, 1], found {v}"),
                 ));
             }
         }
