@@ -14,25 +14,26 @@ import numpy as np
 from norfair import Detection, Tracker
 
 
-def main(seq, out):
-    dets = defaultdict(list)
-    with open(f"{seq}/det/det.txt") as f:
-        for line in f:
-            c = line.strip().split(",")
-            if len(c) < 6:
-                continue
-            frame, left, top, w, h = int(c[0]), *map(float, c[2:6])
-            dets[frame].append(np.array([[left, top], [left + w, top + h]]))
-    n_frames = max(dets) if dets else 0
+def seq_length(seq, default=0):
+    """`seqLength` of SEQ/seqinfo.ini (default when absent)."""
     with open(f"{seq}/seqinfo.ini") as f:
         for line in f:
             if line.startswith("seqLength="):
-                n_frames = int(line.split("=")[1])
+                return int(line.split("=")[1])
+    return default
+
+
+def track(boxes, n_frames, out):
+    """norfair's IoU tracker over `boxes` (frame → list of (left, top, w, h)), frames
+    1..n_frames, written to OUT as MOTChallenge tracks."""
     tracker = Tracker(distance_function="iou", distance_threshold=0.7)
     rows = []
     for frame in range(1, n_frames + 1):
-        tracked = tracker.update([Detection(points=b) for b in dets.get(frame, [])])
-        for t in tracked:
+        dets = [
+            Detection(points=np.array([[x, y], [x + w, y + h]]))
+            for x, y, w, h in boxes.get(frame, [])
+        ]
+        for t in tracker.update(dets):
             (x0, y0), (x1, y1) = t.estimate
             # The Kalman estimate can swap corners for a moment: keep the box valid.
             x0, x1 = min(x0, x1), max(x0, x1)
@@ -40,6 +41,17 @@ def main(seq, out):
             rows.append(f"{frame},{t.id},{x0:.2f},{y0:.2f},{x1 - x0:.2f},{y1 - y0:.2f},1,-1,-1,-1")
     with open(out, "w") as f:
         f.write("\n".join(rows) + ("\n" if rows else ""))
+
+
+def main(seq, out):
+    boxes = defaultdict(list)
+    with open(f"{seq}/det/det.txt") as f:
+        for line in f:
+            c = line.strip().split(",")
+            if len(c) < 6:
+                continue
+            boxes[int(c[0])].append(tuple(map(float, c[2:6])))
+    track(boxes, seq_length(seq, max(boxes) if boxes else 0), out)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,10 @@
 #
 #   scripts/tracking_table.sh [FRAMES] [SEEDS...]      # default 300 frames, seeds 1 2 3
 #
+# SCENES="road:aerial crossing:oblique" limits the scene/view pairs (default: all six).
+# After the per-seed rows it prints the means over the seeds and, per scene, the best
+# roadtrack row against norfair.
+#
 # Needs norfair in the Python that PYTHON names (default python3); not part of the tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,11 +32,12 @@ import json, sys
 m = json.load(open(sys.argv[2]))
 cells = [f"{m[k]:.3f}" for k in ("HOTA", "AssA", "IDF1", "MOTA")] + [str(int(m["IDSW"]))]
 print(sys.argv[1] + " | " + " | ".join(cells) + " |")
-' "$1" "$work/m.json"
+' "$1" "$work/m.json" | tee -a "$work/rows.md"
 }
 echo "| scene | seed | tracker | HOTA | AssA | IDF1 | MOTA | IDSW |"
 echo "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |"
-for sv in road:aerial intersection:oblique crossing:oblique; do
+scenes="${SCENES:-road:aerial road:oblique intersection:aerial intersection:oblique crossing:aerial crossing:oblique}"
+for sv in $scenes; do
   scene="${sv%%:*}"; view="${sv##*:}"
   for seed in "${seeds[@]}"; do
     seq="$work/$scene-$view-$seed"
@@ -56,3 +61,27 @@ for sv in road:aerial intersection:oblique crossing:oblique; do
     done
   done
 done
+echo
+"$py" - "$work/rows.md" <<'PY'
+import sys
+from collections import defaultdict
+acc = defaultdict(list)
+for line in open(sys.argv[1]):
+    c = [x.strip() for x in line.strip().strip("|").split("|")]
+    acc[(c[0], c[2])].append([float(x) for x in c[3:8]])
+print("Means over the seeds:\n")
+print("| scene | tracker | HOTA | AssA | IDF1 | MOTA | IDSW |")
+print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
+mean = {}
+for (sv, t), rows in acc.items():
+    mean[(sv, t)] = [sum(r[i] for r in rows) / len(rows) for i in range(5)]
+    m = mean[(sv, t)]
+    print(f"| {sv} | {t} | {m[0]:.3f} | {m[1]:.3f} | {m[2]:.3f} | {m[3]:.3f} | {m[4]:.1f} |")
+print("\n| scene | norfair HOTA / IDF1 | best roadtrack | HOTA / IDF1 |")
+print("| --- | ---: | --- | ---: |")
+for sv in dict.fromkeys(sv for sv, _ in acc):
+    p = mean[(sv, "norfair IoU (peer)")]
+    best = max((m[0], t) for (s, t), m in mean.items() if s == sv and "peer" not in t)
+    b = mean[(sv, best[1])]
+    print(f"| {sv} | {p[0]:.3f} / {p[2]:.3f} | {best[1]} | {b[0]:.3f} / {b[2]:.3f} |")
+PY

@@ -1,0 +1,110 @@
+#!/usr/bin/env python3
+"""Tracking from video (docs/EXPERIMENTS.md, "Tracking from video", issue 13): every
+roadtrack method with each detector that needs no download, beside the MOG2 + norfair
+peer (scripts/mog2_norfair.py), on the same simulated frames. Class-agnostic HOTA, DetA,
+AssA, IDF1, MOTA by `roadtrack evaluate` (TrackEval's definitions). Prints per-seed rows,
+then means over the seeds, then the best roadtrack (method, detector) per scene against
+the peer.
+
+    python scripts/video_tracking_table.py --roadtrack $CARGO_TARGET_DIR/release/roadtrack \\
+        [--frames 300] [--seeds 1,2,3] [--scenes road,intersection,crossing] \\
+        [--views aerial,oblique] [--detectors background,cnn] [--work /tmp/vidtrack]
+
+Run from the repository root (configs/ and models/detector.onnx are read from there).
+Not part of the test suite; needs `pip install opencv-python-headless numpy norfair`.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+from collections import defaultdict
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mog2_norfair  # noqa: E402
+
+# The settings each method uses in scripts/tracking_table.sh's best rows.
+METHODS = [
+    ("relaxation", ["--config", "configs/relaxation-video.toml"]),
+    ("mrf", []),
+    ("pf", ["--config", "configs/filters-pedestrians.toml"]),
+    ("phd", []),
+]
+KEYS = ("HOTA", "DetA", "AssA", "IDF1", "MOTA")
+
+
+def run(cmd):
+    subprocess.run(cmd, check=True)
+
+
+def evaluate(rt, seq, tracks):
+    out = subprocess.run(
+        [rt, "-q", "evaluate", "--truth", seq, "--tracks", tracks, "--classes", "agnostic", "--json"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    m = json.loads(out)
+    return {k: float(m[k]) for k in KEYS}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--roadtrack", default="roadtrack")
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--scenes", default="road,intersection,crossing")
+    ap.add_argument("--views", default="aerial,oblique")
+    ap.add_argument("--detectors", default="background,cnn")
+    ap.add_argument("--work", default="/tmp/vidtrack")
+    a = ap.parse_args()
+    rt = a.roadtrack
+    seeds = [int(s) for s in a.seeds.split(",")]
+    os.makedirs(a.work, exist_ok=True)
+    results = defaultdict(list)  # (scene/view, tracker) -> [metrics per seed]
+    print("| scene | seed | tracker | " + " | ".join(KEYS) + " |")
+    print("| --- | ---: | --- |" + " ---: |" * len(KEYS))
+    for scene in a.scenes.split(","):
+        for view in a.views.split(","):
+            sv = f"{scene}/{view}"
+            for seed in seeds:
+                seq = f"{a.work}/{scene}-{view}-{seed}"
+                if not os.path.exists(f"{seq}/seqinfo.ini"):
+                    run([rt, "-q", "simulate", "--scene", scene, "--view", view,
+                         "--frames", str(a.frames), "--seed", str(seed), "-o", seq])
+                t = f"{a.work}/t.txt"
+                rows = []
+                mog2_norfair.main(seq, t)
+                rows.append(("MOG2 + norfair (peer)", evaluate(rt, seq, t)))
+                for det in a.detectors.split(","):
+                    for method, extra in METHODS:
+                        run([rt, "-q", "track", seq, "--method", method, "--detector", det,
+                             *extra, "--seed", "0", "-o", t])
+                        rows.append((f"{method} + {det}", evaluate(rt, seq, t)))
+                for name, m in rows:
+                    results[(sv, name)].append(m)
+                    cells = " | ".join(f"{m[k]:.3f}" for k in KEYS)
+                    print(f"| {sv} | {seed} | {name} | {cells} |", flush=True)
+    print()
+    print(f"Means over seeds {a.seeds}:")
+    print()
+    print("| scene | tracker | " + " | ".join(KEYS) + " |")
+    print("| --- | --- |" + " ---: |" * len(KEYS))
+    means = {}
+    for (sv, name), ms in results.items():
+        means[(sv, name)] = {k: sum(m[k] for m in ms) / len(ms) for k in KEYS}
+        cells = " | ".join(f"{means[(sv, name)][k]:.3f}" for k in KEYS)
+        print(f"| {sv} | {name} | {cells} |")
+    print()
+    print("| scene | MOG2 + norfair HOTA | best roadtrack | HOTA | ratio |")
+    print("| --- | ---: | --- | ---: | ---: |")
+    for sv in dict.fromkeys(sv for sv, _ in results):
+        peer = means[(sv, "MOG2 + norfair (peer)")]["HOTA"]
+        ours = [(m["HOTA"], n) for (s, n), m in means.items() if s == sv and "peer" not in n]
+        best, name = max(ours)
+        ratio = f"{best / peer:.2f}" if peer > 0 else "–"
+        print(f"| {sv} | {peer:.3f} | {name} | {best:.3f} | {ratio} |")
+
+
+if __name__ == "__main__":
+    main()
