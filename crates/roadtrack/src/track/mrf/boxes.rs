@@ -63,6 +63,34 @@ pub struct Weights {
     /// Smallest expected-box IoU that lets an object whose blocks the box does not cover
     /// take the box.
     pub revive_iou: f64,
+    /// Weight of the centre-distance term `max(0, 1 − d / gate)` (`d`: distance of the box
+    /// centre from the expected box's centre); 0 = off (the scoring before issue 14).
+    pub distance: f64,
+    /// Gate of the distance term, px: `max(gate_px, gate_width_factor · box width)`. An
+    /// object within the gate of a box is a candidate for it even when neither its blocks
+    /// nor its expected box overlap the box.
+    pub gate_px: f64,
+    /// See `gate_px`.
+    pub gate_width_factor: f64,
+    /// Optimal (Hungarian, maximum total score) instead of greedy one-to-one matching.
+    pub optimal: bool,
+}
+
+impl Weights {
+    /// The scoring before issue 14: block IoU (0.25) and expected-box IoU, greedy.
+    pub const GREEDY_IOU: Weights = Weights {
+        block_iou: 0.25,
+        revive_iou: 0.3,
+        distance: 0.0,
+        gate_px: 0.0,
+        gate_width_factor: 0.0,
+        optimal: false,
+    };
+
+    /// The distance gate for a box of width `width`, px.
+    fn gate(&self, width: f64) -> f64 {
+        self.gate_px.max(self.gate_width_factor * width)
+    }
 }
 
 /// How one box of the frame was resolved.
@@ -135,30 +163,45 @@ pub fn apply_boxes(
             }
         }
         let box_iou = |id: ObjectId| expected.get(&id).map_or(0.0, |e| boxes[j].iou(e));
+        let gate = weights.gate(boxes[j].width);
+        let closeness = |id: ObjectId| {
+            expected.get(&id).map_or(0.0, |e| {
+                let d = boxes[j].centre().distance(e.centre());
+                if weights.distance > 0.0 && gate > 0.0 {
+                    (1.0 - d / gate).max(0.0)
+                } else {
+                    0.0
+                }
+            })
+        };
         for (&id, &inter) in &hist {
             let union = cover.len() as u32 + area[&id] - inter;
             let block_iou = f64::from(inter) / f64::from(union.max(1));
-            pairs.push((weights.block_iou * block_iou + box_iou(id), j, id, true));
+            let s = weights.block_iou * block_iou + box_iou(id) + weights.distance * closeness(id);
+            pairs.push((s, j, id, true));
         }
         for &id in expected.keys() {
             let iou = box_iou(id);
-            if !hist.contains_key(&id) && iou >= weights.revive_iou {
-                pairs.push((iou, j, id, false));
+            let near = closeness(id);
+            if !hist.contains_key(&id) && (iou >= weights.revive_iou || near > 0.0) {
+                pairs.push((iou + weights.distance * near, j, id, false));
             }
         }
     }
-    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let chosen = if weights.optimal {
+        optimal_pairs(&pairs, boxes.len())
+    } else {
+        greedy_pairs(pairs)
+    };
     let mut outcome: Vec<Option<BoxOutcome>> = vec![None; boxes.len()];
     let mut taken: BTreeMap<ObjectId, usize> = BTreeMap::new();
-    for (_, j, id, shares) in pairs {
-        if outcome[j].is_none() && !taken.contains_key(&id) {
-            outcome[j] = Some(if shares {
-                BoxOutcome::Matched(id)
-            } else {
-                BoxOutcome::Revived(id)
-            });
-            taken.insert(id, j);
-        }
+    for (j, id, shares) in chosen {
+        outcome[j] = Some(if shares {
+            BoxOutcome::Matched(id)
+        } else {
+            BoxOutcome::Revived(id)
+        });
+        taken.insert(id, j);
     }
     let outcome: Vec<BoxOutcome> = outcome
         .into_iter()
@@ -210,14 +253,58 @@ pub fn apply_boxes(
     outcome
 }
 
+/// Greedy one-to-one matching by descending score (ties: lower box index, then lower id).
+fn greedy_pairs(mut pairs: Vec<(f64, usize, ObjectId, bool)>) -> Vec<(usize, ObjectId, bool)> {
+    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut box_done = std::collections::BTreeSet::new();
+    let mut id_done = std::collections::BTreeSet::new();
+    let mut out = Vec::new();
+    for (_, j, id, shares) in pairs {
+        if !box_done.contains(&j) && !id_done.contains(&id) {
+            box_done.insert(j);
+            id_done.insert(id);
+            out.push((j, id, shares));
+        }
+    }
+    out
+}
+
+/// One-to-one matching of maximum total score over the candidate pairs (Hungarian,
+/// [`crate::assignment::max_score_assignment`]); pairs that are not candidates score 0 and
+/// are never chosen.
+fn optimal_pairs(
+    pairs: &[(f64, usize, ObjectId, bool)],
+    n_boxes: usize,
+) -> Vec<(usize, ObjectId, bool)> {
+    let ids: Vec<ObjectId> = {
+        let set: std::collections::BTreeSet<ObjectId> = pairs.iter().map(|p| p.2).collect();
+        set.into_iter().collect()
+    };
+    if ids.is_empty() || n_boxes == 0 {
+        return Vec::new();
+    }
+    let col = |id: ObjectId| ids.binary_search(&id).unwrap_or(0);
+    let mut score = vec![0.0; n_boxes * ids.len()];
+    let mut shares = vec![false; n_boxes * ids.len()];
+    for &(s, j, id, sh) in pairs {
+        // Choice: every candidate scores at least a small positive amount, so a candidate
+        // pair is always preferred to leaving both unmatched.
+        score[j * ids.len() + col(id)] = s.max(1e-6);
+        shares[j * ids.len() + col(id)] = sh;
+    }
+    crate::assignment::max_score_assignment(&score, n_boxes, ids.len())
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|&(j, c)| score[j * ids.len() + c] > 0.0)
+        .map(|(j, c)| (j, ids[c], shares[j * ids.len() + c]))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const W: Weights = Weights {
-        block_iou: 0.25,
-        revive_iou: 0.3,
-    };
+    const W: Weights = Weights::GREEDY_IOU;
 
     fn grid() -> BlockGrid {
         BlockGrid::for_frame(160, 160) // 20 × 20

@@ -128,6 +128,28 @@ pub struct MrfConfig {
     /// `a = clamp(smaller box side / box_smoothing_px, 0.25, 1)`: boxes narrower than this
     /// are smoothed, px. Default 16; 0 reports the detector's boxes as they are.
     pub box_smoothing_px: f64,
+    /// With detections: how boxes are matched to objects. Default optimal.
+    pub association: Association,
+    /// With detections: weight of the centre-distance term `max(0, 1 − d / gate)` in the
+    /// score of a box and an object (`d`: distance of the box centre from the object's
+    /// expected box centre, px). Default TODO; 0 = boxes and blocks overlap only.
+    pub distance_weight: f64,
+    /// With detections: the distance gate, px: `max(gate_px, gate_width_factor · box
+    /// width)`. Default TODO.
+    pub gate_px: f64,
+    /// With detections: see `gate_px`. Default TODO.
+    pub gate_width_factor: f64,
+}
+
+/// How the boxes of a frame are matched to objects ([`MrfConfig::association`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Association {
+    /// One-to-one by descending score (the matching before issue 14).
+    Greedy,
+    /// One-to-one of maximum total score (Hungarian).
+    #[default]
+    Optimal,
 }
 
 impl Default for MrfConfig {
@@ -171,6 +193,10 @@ impl Default for MrfConfig {
             block_overlap_weight: 0.25,
             velocity_smoothing: 0.1,
             box_smoothing_px: 16.0,
+            association: Association::Optimal,
+            distance_weight: 1.0,
+            gate_px: 8.0,
+            gate_width_factor: 1.0,
         }
     }
 }
@@ -204,6 +230,9 @@ impl MrfConfig {
             ("keep_max_mean_diff", self.keep_max_mean_diff),
             ("keep_min_travel_px", self.keep_min_travel_px),
             ("block_overlap_weight", self.block_overlap_weight),
+            ("distance_weight", self.distance_weight),
+            ("gate_px", self.gate_px),
+            ("gate_width_factor", self.gate_width_factor),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return err(field, format!("must be finite and ≥ 0, found {v}"));

@@ -49,7 +49,7 @@ use object_map::{BLOCK_PX, BlockGrid, MotionMap, NO_OBJECT, ObjectId, ObjectMap,
 use serde::Serialize;
 use std::collections::BTreeMap;
 
-pub use config::{MrfConfig, MrfVariant};
+pub use config::{Association, MrfConfig, MrfVariant};
 
 /// What happened in one [`MrfTracker::step`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -427,6 +427,10 @@ impl MrfTracker {
                     boxes::Weights {
                         block_iou: self.config.block_overlap_weight,
                         revive_iou: self.config.revive_iou,
+                        distance: self.config.distance_weight,
+                        gate_px: self.config.gate_px,
+                        gate_width_factor: self.config.gate_width_factor,
+                        optimal: self.config.association == Association::Optimal,
                     },
                     &mut self.next_id,
                 );
