@@ -122,7 +122,8 @@ impl BoxOutcome {
 /// are scored by `weights.block_iou` × the block IoU of the box's blocks and the object's,
 /// plus the IoU of the box and the object's expected box; an object whose blocks the box
 /// does not cover at all is a candidate only when that box IoU reaches
-/// `weights.revive_iou`. New objects take `*next_id` onwards.
+/// `weights.revive_iou` or the box lies within its distance gate. `appearance(box, id)` is
+/// added to every candidate's score. New objects take `*next_id` onwards.
 ///
 /// Returns one outcome per box, in the boxes' order.
 // Choice: one-to-one matching, greedy by descending score (ties: lower box index, then
@@ -143,6 +144,7 @@ pub fn apply_boxes(
     boxes: &[BBox],
     revivable: &[(ObjectId, BBox)],
     weights: Weights,
+    appearance: &dyn Fn(usize, ObjectId) -> f64,
     next_id: &mut ObjectId,
 ) -> Vec<BoxOutcome> {
     let covers: Vec<Vec<usize>> = boxes.iter().map(|b| box_cover(grid, b)).collect();
@@ -177,14 +179,22 @@ pub fn apply_boxes(
         for (&id, &inter) in &hist {
             let union = cover.len() as u32 + area[&id] - inter;
             let block_iou = f64::from(inter) / f64::from(union.max(1));
-            let s = weights.block_iou * block_iou + box_iou(id) + weights.distance * closeness(id);
+            let s = weights.block_iou * block_iou
+                + box_iou(id)
+                + weights.distance * closeness(id)
+                + appearance(j, id);
             pairs.push((s, j, id, true));
         }
         for &id in expected.keys() {
             let iou = box_iou(id);
             let near = closeness(id);
             if !hist.contains_key(&id) && (iou >= weights.revive_iou || near > 0.0) {
-                pairs.push((iou + weights.distance * near, j, id, false));
+                pairs.push((
+                    iou + weights.distance * near + appearance(j, id),
+                    j,
+                    id,
+                    false,
+                ));
             }
         }
     }
@@ -354,6 +364,7 @@ mod tests {
             ],
             &[],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(7), BoxOutcome::Started(10)]);
@@ -371,7 +382,7 @@ mod tests {
         let mut next = 4;
         let left = BBox::new(32.0, 32.0, 16.0, 24.0); // 2 × 3 blocks
         let right = BBox::new(48.0, 32.0, 32.0, 24.0); // 4 × 3 blocks
-        let out = apply_boxes(&mut ids, &g, &[left, right], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[left, right], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(4), BoxOutcome::Matched(3)]);
         assert_eq!(ids.iter().filter(|&&i| i == 4).count(), 6);
         assert_eq!(ids.iter().filter(|&&i| i == 3).count(), 12);
@@ -391,6 +402,7 @@ mod tests {
             &[BBox::new(16.0, 16.0, 16.0, 16.0)],
             &[],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(1)]);
@@ -411,6 +423,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(82.0, 80.0, 24.0, 16.0))],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
@@ -424,6 +437,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(120.0, 80.0, 24.0, 16.0))],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
@@ -439,14 +453,14 @@ mod tests {
         let b1 = BBox::new(16.0, 16.0, 32.0, 16.0);
         let b2 = BBox::new(40.0, 16.0, 24.0, 16.0);
         let mut next = 3;
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(5, 2)], 2, "the shared column stays with 2");
         // Unlabelled shared blocks go to the nearer box centre.
         let mut ids = vec![NO_OBJECT; g.len()];
         fill(&mut ids, &g, 2..4, 2..4, 1);
         fill(&mut ids, &g, 6..8, 2..4, 2);
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(4, 2)], 1);
         assert_eq!(ids[g.index(5, 2)], 2);

@@ -23,6 +23,7 @@
 //! Two variants ([`MrfVariant`]): the 2000 model (representative vector per object, no `f`
 //! term) and the 2004 model (local vectors and the `f` term), compared in Fig. 10.
 
+pub mod appearance;
 pub mod block_matching;
 pub mod boxes;
 mod config;
@@ -127,6 +128,10 @@ struct ObjectTrack {
     missed: u32,
     /// Frames a box matched it.
     hits: u32,
+    /// Box displacements averaged into `velocity`.
+    displacements: u32,
+    /// With an appearance weight: the mean colours of its matched boxes (smoothed).
+    appearance: Option<appearance::Appearance>,
 }
 
 impl ObjectTrack {
@@ -139,6 +144,8 @@ impl ObjectTrack {
             velocity: [0.0, 0.0],
             missed: 0,
             hits: 0,
+            displacements: 0,
+            appearance: None,
         }
     }
 }
@@ -404,6 +411,7 @@ impl MrfTracker {
                 p.top += track.velocity[1];
             }
         }
+        let mut descriptors: Vec<Option<appearance::Appearance>> = Vec::new();
         let outcomes = match &boxes {
             None => {
                 let born = propagate::births(
@@ -419,6 +427,25 @@ impl MrfTracker {
             }
             Some(b) => {
                 let expected = self.expected_boxes();
+                let weight = self.config.appearance_weight;
+                if weight > 0.0 {
+                    let inner = self.config.appearance_inner_fraction;
+                    descriptors = b
+                        .iter()
+                        .map(|b| appearance::describe(&frame.image, b, inner))
+                        .collect();
+                }
+                let scale = self.config.appearance_scale;
+                let objects = &self.objects;
+                let descs = &descriptors;
+                let similar = |j: usize, id: ObjectId| -> f64 {
+                    match (descs.get(j).copied().flatten(), objects.get(&id)) {
+                        (Some(d), Some(o)) => o
+                            .appearance
+                            .map_or(0.0, |a| weight * appearance::similarity(&a, &d, scale)),
+                        _ => 0.0,
+                    }
+                };
                 let out = boxes::apply_boxes(
                     &mut ids,
                     &self.grid,
@@ -432,6 +459,7 @@ impl MrfTracker {
                         gate_width_factor: self.config.gate_width_factor,
                         optimal: self.config.association == Association::Optimal,
                     },
+                    &similar,
                     &mut self.next_id,
                 );
                 stats.births = out
@@ -454,7 +482,7 @@ impl MrfTracker {
         self.moving = moving;
         self.prev_gray = Some(gray);
         let out = match (outcomes, detections) {
-            (Some(outcomes), Some(dets)) => self.box_points(frame, &outcomes, dets),
+            (Some(outcomes), Some(dets)) => self.box_points(frame, &outcomes, dets, &descriptors),
             _ => self.region_points(frame),
         };
         stats.objects = self.map.regions().len() as u32;
@@ -532,6 +560,7 @@ impl MrfTracker {
         frame: &Frame,
         outcomes: &[boxes::BoxOutcome],
         detections: &[Detection],
+        descriptors: &[Option<appearance::Appearance>],
     ) -> Vec<TrackPoint> {
         let regions: BTreeMap<ObjectId, (u32, Point)> = self
             .map
@@ -541,7 +570,7 @@ impl MrfTracker {
             .collect();
         let mut out = Vec::new();
         let mut matched = std::collections::BTreeSet::new();
-        for (o, d) in outcomes.iter().zip(detections) {
+        for (j, (o, d)) in outcomes.iter().zip(detections).enumerate() {
             let id = o.id();
             matched.insert(id);
             let detected = d.bbox().unwrap_or_else(|| {
@@ -567,11 +596,27 @@ impl MrfTracker {
             if let Some((b, _, _)) = &track.last {
                 let gap = f64::from(track.missed + 1);
                 let (c0, c1) = (b.centre(), bbox.centre());
-                let a = self.config.velocity_smoothing;
+                // Choice: with `velocity_warmup` the first displacements are averaged
+                // (weight 1/k for the k-th, never below `velocity_smoothing`): a new
+                // object moves at its measured speed from its second box on instead of
+                // starting at rest and taking ~1/velocity_smoothing frames to catch up.
+                track.displacements += 1;
+                let a = if self.config.velocity_warmup {
+                    (1.0 / f64::from(track.displacements)).max(self.config.velocity_smoothing)
+                } else {
+                    self.config.velocity_smoothing
+                };
                 track.velocity = [
                     (1.0 - a) * track.velocity[0] + a * (c1.x - c0.x) / gap,
                     (1.0 - a) * track.velocity[1] + a * (c1.y - c0.y) / gap,
                 ];
+            }
+            if let Some(Some(desc)) = descriptors.get(j) {
+                let a = self.config.appearance_smoothing;
+                track.appearance = Some(match track.appearance {
+                    Some(old) => appearance::blend(&old, desc, a),
+                    None => *desc,
+                });
             }
             track.shown = Some(bbox);
             track.last = Some((bbox, class.clone(), score));
