@@ -319,3 +319,25 @@ fn far_pedestrians_walking_in_a_group_keep_one_id_each() -> Result<()> {
     }
     Ok(())
 }
+
+#[test]
+fn tracking_with_boxes_is_the_same_at_one_and_two_threads() -> Result<()> {
+    let people = [
+        (1, 60.0, 0.0, 1.4, [150, 40, 40]),
+        (2, 60.0, 1.0, 1.4, [40, 60, 120]),
+        (3, 56.0, 14.0, -1.4, [210, 120, 40]),
+    ];
+    let scene = walkers(&people, 40, 1)?;
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| crate::Error::Invalid(e.to_string()))
+    };
+    let cfg = MrfConfig::default();
+    let one = pool(1)?.install(|| run_with_boxes_at(&cfg, &scene, 640, 480))?;
+    let two = pool(2)?.install(|| run_with_boxes_at(&cfg, &scene, 640, 480))?;
+    assert_eq!(one, two);
+    assert!(one.iter().map(Vec::len).sum::<usize>() > 60);
+    Ok(())
+}
