@@ -2,8 +2,9 @@
 //! are started and split from the boxes, while Steps 1–5 (block matching, propagation,
 //! the Gibbs sampler on eq. 5) carry the ids from frame to frame.
 //!
-//! After the sampler has decided `X(t)`, each box of frame `t` is matched to the object whose
-//! blocks it covers most (block IoU, one box per object); a box that no object claims
+//! After the sampler has decided `X(t)`, the boxes of frame `t` are matched one-to-one to
+//! objects by their blocks (block IoU), where each object was expected (box IoU and centre
+//! distance) and, optionally, their colours (Hungarian or greedy); a box that no object claims
 //! starts an object with the blocks it covers — this also splits a region that the boxes
 //! show to be several objects: the largest part keeps the region's id, the others get new
 //! ones. An object the boxes no longer find keeps its blocks (the Object-map tracks it
@@ -126,9 +127,12 @@ impl BoxOutcome {
 /// added to every candidate's score. New objects take `*next_id` onwards.
 ///
 /// Returns one outcome per box, in the boxes' order.
-// Choice: one-to-one matching, greedy by descending score (ties: lower box index, then
-// lower id) — the box that covers most of a region keeps its id; a second box over the same
-// region starts a new object: that is how a group is split. The expected box's IoU is added
+// Choice: one-to-one matching, by default of maximum total score (Hungarian; greedy by
+// descending score, ties lower box index then lower id, with `weights.optimal` off) — the
+// box that covers most of a region keeps its id; a second box over the same region starts
+// a new object: that is how a group is split. The centre-distance term and its gate (issue
+// 14) let a box narrower than a block follow its object when neither the blocks nor the
+// expected box overlap it any more (numbers at `MrfConfig::default`). The expected box's IoU is added
 // because blocks are coarse: two pedestrians 5 px wide walking side by side share one
 // block column, so the block IoU alone cannot say which box is whose (seed 1, block IoU
 // alone: HOTA 0.46 / 0.53 on intersection / crossing; with the box IoU and weight 0.25 on
@@ -464,5 +468,66 @@ mod tests {
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(4, 2)], 1);
         assert_eq!(ids[g.index(5, 2)], 2);
+    }
+
+    const NEW: Weights = Weights {
+        block_iou: 0.25,
+        revive_iou: 0.3,
+        distance: 2.0,
+        gate_px: 8.0,
+        gate_width_factor: 1.0,
+        optimal: true,
+    };
+
+    #[test]
+    fn a_small_box_near_where_its_object_was_expected_is_matched_within_the_gate() {
+        let g = grid();
+        // A 5 × 7 px pedestrian expected 4 px to the left: box IoU 0.11, no shared block.
+        let b = BBox::new(84.0, 80.0, 5.0, 7.0);
+        let expected = [(5, BBox::new(80.0, 80.0, 5.0, 7.0))];
+        let mut next = 9;
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Revived(5)]);
+        // Without the distance term (the matching before issue 14): a new object.
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, W, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Started(9)]);
+        // Beyond the gate (max(8 px, 5 px)): a new object either way.
+        let far = BBox::new(89.0, 80.0, 5.0, 7.0);
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[far], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Started(10)]);
+    }
+
+    #[test]
+    fn optimal_matching_maximises_the_total_where_greedy_takes_the_best_pair_first() {
+        // Box 0 fits object 1 best (0.9) but also object 2 (0.8); box 1 fits only object 1.
+        let pairs = vec![(0.9, 0, 1, false), (0.8, 0, 2, false), (0.7, 1, 1, false)];
+        let mut greedy = greedy_pairs(pairs.clone());
+        greedy.sort();
+        assert_eq!(greedy, vec![(0, 1, false)]);
+        let mut optimal = optimal_pairs(&pairs, 2);
+        optimal.sort();
+        assert_eq!(optimal, vec![(0, 2, false), (1, 1, false)]);
+    }
+
+    #[test]
+    fn the_appearance_term_decides_between_two_equally_near_objects() {
+        let g = grid();
+        let b = BBox::new(80.0, 80.0, 5.0, 7.0);
+        // Two objects expected 2 px left and 2 px right of the box.
+        let expected = [
+            (1, BBox::new(78.0, 80.0, 5.0, 7.0)),
+            (2, BBox::new(82.0, 80.0, 5.0, 7.0)),
+        ];
+        let mut next = 3;
+        let looks = |_: usize, id: ObjectId| if id == 2 { 1.0 } else { 0.0 };
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &looks, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Revived(2)]);
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert!(matches!(out[..], [BoxOutcome::Revived(1 | 2)]), "{out:?}");
     }
 }
