@@ -2,8 +2,9 @@
 //! are started and split from the boxes, while Steps 1–5 (block matching, propagation,
 //! the Gibbs sampler on eq. 5) carry the ids from frame to frame.
 //!
-//! After the sampler has decided `X(t)`, each box of frame `t` is matched to the object whose
-//! blocks it covers most (block IoU, one box per object); a box that no object claims
+//! After the sampler has decided `X(t)`, the boxes of frame `t` are matched one-to-one to
+//! objects by their blocks (block IoU), where each object was expected (box IoU and centre
+//! distance) and, optionally, their colours (Hungarian or greedy); a box that no object claims
 //! starts an object with the blocks it covers — this also splits a region that the boxes
 //! show to be several objects: the largest part keeps the region's id, the others get new
 //! ones. An object the boxes no longer find keeps its blocks (the Object-map tracks it
@@ -63,6 +64,34 @@ pub struct Weights {
     /// Smallest expected-box IoU that lets an object whose blocks the box does not cover
     /// take the box.
     pub revive_iou: f64,
+    /// Weight of the centre-distance term `max(0, 1 − d / gate)` (`d`: distance of the box
+    /// centre from the expected box's centre); 0 = off (the scoring before issue 14).
+    pub distance: f64,
+    /// Gate of the distance term, px: `max(gate_px, gate_width_factor · box width)`. An
+    /// object within the gate of a box is a candidate for it even when neither its blocks
+    /// nor its expected box overlap the box.
+    pub gate_px: f64,
+    /// See `gate_px`.
+    pub gate_width_factor: f64,
+    /// Optimal (Hungarian, maximum total score) instead of greedy one-to-one matching.
+    pub optimal: bool,
+}
+
+impl Weights {
+    /// The scoring before issue 14: block IoU (0.25) and expected-box IoU, greedy.
+    pub const GREEDY_IOU: Weights = Weights {
+        block_iou: 0.25,
+        revive_iou: 0.3,
+        distance: 0.0,
+        gate_px: 0.0,
+        gate_width_factor: 0.0,
+        optimal: false,
+    };
+
+    /// The distance gate for a box of width `width`, px.
+    fn gate(&self, width: f64) -> f64 {
+        self.gate_px.max(self.gate_width_factor * width)
+    }
 }
 
 /// How one box of the frame was resolved.
@@ -94,12 +123,16 @@ impl BoxOutcome {
 /// are scored by `weights.block_iou` × the block IoU of the box's blocks and the object's,
 /// plus the IoU of the box and the object's expected box; an object whose blocks the box
 /// does not cover at all is a candidate only when that box IoU reaches
-/// `weights.revive_iou`. New objects take `*next_id` onwards.
+/// `weights.revive_iou` or the box lies within its distance gate. `appearance(box, id)` is
+/// added to every candidate's score. New objects take `*next_id` onwards.
 ///
 /// Returns one outcome per box, in the boxes' order.
-// Choice: one-to-one matching, greedy by descending score (ties: lower box index, then
-// lower id) — the box that covers most of a region keeps its id; a second box over the same
-// region starts a new object: that is how a group is split. The expected box's IoU is added
+// Choice: one-to-one matching, by default of maximum total score (Hungarian; greedy by
+// descending score, ties lower box index then lower id, with `weights.optimal` off) — the
+// box that covers most of a region keeps its id; a second box over the same region starts
+// a new object: that is how a group is split. The centre-distance term and its gate (issue
+// 14) let a box narrower than a block follow its object when neither the blocks nor the
+// expected box overlap it any more (numbers at `MrfConfig::default`). The expected box's IoU is added
 // because blocks are coarse: two pedestrians 5 px wide walking side by side share one
 // block column, so the block IoU alone cannot say which box is whose (seed 1, block IoU
 // alone: HOTA 0.46 / 0.53 on intersection / crossing; with the box IoU and weight 0.25 on
@@ -115,6 +148,7 @@ pub fn apply_boxes(
     boxes: &[BBox],
     revivable: &[(ObjectId, BBox)],
     weights: Weights,
+    appearance: &dyn Fn(usize, ObjectId) -> f64,
     next_id: &mut ObjectId,
 ) -> Vec<BoxOutcome> {
     let covers: Vec<Vec<usize>> = boxes.iter().map(|b| box_cover(grid, b)).collect();
@@ -135,30 +169,53 @@ pub fn apply_boxes(
             }
         }
         let box_iou = |id: ObjectId| expected.get(&id).map_or(0.0, |e| boxes[j].iou(e));
+        let gate = weights.gate(boxes[j].width);
+        let closeness = |id: ObjectId| {
+            expected.get(&id).map_or(0.0, |e| {
+                let d = boxes[j].centre().distance(e.centre());
+                if weights.distance > 0.0 && gate > 0.0 {
+                    (1.0 - d / gate).max(0.0)
+                } else {
+                    0.0
+                }
+            })
+        };
         for (&id, &inter) in &hist {
             let union = cover.len() as u32 + area[&id] - inter;
             let block_iou = f64::from(inter) / f64::from(union.max(1));
-            pairs.push((weights.block_iou * block_iou + box_iou(id), j, id, true));
+            let s = weights.block_iou * block_iou
+                + box_iou(id)
+                + weights.distance * closeness(id)
+                + appearance(j, id);
+            pairs.push((s, j, id, true));
         }
         for &id in expected.keys() {
             let iou = box_iou(id);
-            if !hist.contains_key(&id) && iou >= weights.revive_iou {
-                pairs.push((iou, j, id, false));
+            let near = closeness(id);
+            if !hist.contains_key(&id) && (iou >= weights.revive_iou || near > 0.0) {
+                pairs.push((
+                    iou + weights.distance * near + appearance(j, id),
+                    j,
+                    id,
+                    false,
+                ));
             }
         }
     }
-    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let chosen = if weights.optimal {
+        optimal_pairs(&pairs, boxes.len())
+    } else {
+        greedy_pairs(pairs)
+    };
     let mut outcome: Vec<Option<BoxOutcome>> = vec![None; boxes.len()];
     let mut taken: BTreeMap<ObjectId, usize> = BTreeMap::new();
-    for (_, j, id, shares) in pairs {
-        if outcome[j].is_none() && !taken.contains_key(&id) {
-            outcome[j] = Some(if shares {
-                BoxOutcome::Matched(id)
-            } else {
-                BoxOutcome::Revived(id)
-            });
-            taken.insert(id, j);
-        }
+    for (j, id, shares) in chosen {
+        outcome[j] = Some(if shares {
+            BoxOutcome::Matched(id)
+        } else {
+            BoxOutcome::Revived(id)
+        });
+        taken.insert(id, j);
     }
     let outcome: Vec<BoxOutcome> = outcome
         .into_iter()
@@ -210,14 +267,58 @@ pub fn apply_boxes(
     outcome
 }
 
+/// Greedy one-to-one matching by descending score (ties: lower box index, then lower id).
+fn greedy_pairs(mut pairs: Vec<(f64, usize, ObjectId, bool)>) -> Vec<(usize, ObjectId, bool)> {
+    pairs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut box_done = std::collections::BTreeSet::new();
+    let mut id_done = std::collections::BTreeSet::new();
+    let mut out = Vec::new();
+    for (_, j, id, shares) in pairs {
+        if !box_done.contains(&j) && !id_done.contains(&id) {
+            box_done.insert(j);
+            id_done.insert(id);
+            out.push((j, id, shares));
+        }
+    }
+    out
+}
+
+/// One-to-one matching of maximum total score over the candidate pairs (Hungarian,
+/// [`crate::assignment::max_score_assignment`]); pairs that are not candidates score 0 and
+/// are never chosen.
+fn optimal_pairs(
+    pairs: &[(f64, usize, ObjectId, bool)],
+    n_boxes: usize,
+) -> Vec<(usize, ObjectId, bool)> {
+    let ids: Vec<ObjectId> = {
+        let set: std::collections::BTreeSet<ObjectId> = pairs.iter().map(|p| p.2).collect();
+        set.into_iter().collect()
+    };
+    if ids.is_empty() || n_boxes == 0 {
+        return Vec::new();
+    }
+    let col = |id: ObjectId| ids.binary_search(&id).unwrap_or(0);
+    let mut score = vec![0.0; n_boxes * ids.len()];
+    let mut shares = vec![false; n_boxes * ids.len()];
+    for &(s, j, id, sh) in pairs {
+        // Choice: every candidate scores at least a small positive amount, so a candidate
+        // pair is always preferred to leaving both unmatched.
+        score[j * ids.len() + col(id)] = s.max(1e-6);
+        shares[j * ids.len() + col(id)] = sh;
+    }
+    crate::assignment::max_score_assignment(&score, n_boxes, ids.len())
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|&(j, c)| score[j * ids.len() + c] > 0.0)
+        .map(|(j, c)| (j, ids[c], shares[j * ids.len() + c]))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const W: Weights = Weights {
-        block_iou: 0.25,
-        revive_iou: 0.3,
-    };
+    const W: Weights = Weights::GREEDY_IOU;
 
     fn grid() -> BlockGrid {
         BlockGrid::for_frame(160, 160) // 20 × 20
@@ -267,6 +368,7 @@ mod tests {
             ],
             &[],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(7), BoxOutcome::Started(10)]);
@@ -284,7 +386,7 @@ mod tests {
         let mut next = 4;
         let left = BBox::new(32.0, 32.0, 16.0, 24.0); // 2 × 3 blocks
         let right = BBox::new(48.0, 32.0, 32.0, 24.0); // 4 × 3 blocks
-        let out = apply_boxes(&mut ids, &g, &[left, right], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[left, right], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(4), BoxOutcome::Matched(3)]);
         assert_eq!(ids.iter().filter(|&&i| i == 4).count(), 6);
         assert_eq!(ids.iter().filter(|&&i| i == 3).count(), 12);
@@ -304,6 +406,7 @@ mod tests {
             &[BBox::new(16.0, 16.0, 16.0, 16.0)],
             &[],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(1)]);
@@ -324,6 +427,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(82.0, 80.0, 24.0, 16.0))],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
@@ -337,6 +441,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(120.0, 80.0, 24.0, 16.0))],
             W,
+            &|_, _| 0.0,
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
@@ -352,16 +457,77 @@ mod tests {
         let b1 = BBox::new(16.0, 16.0, 32.0, 16.0);
         let b2 = BBox::new(40.0, 16.0, 24.0, 16.0);
         let mut next = 3;
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(5, 2)], 2, "the shared column stays with 2");
         // Unlabelled shared blocks go to the nearer box centre.
         let mut ids = vec![NO_OBJECT; g.len()];
         fill(&mut ids, &g, 2..4, 2..4, 1);
         fill(&mut ids, &g, 6..8, 2..4, 2);
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &mut next);
+        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(4, 2)], 1);
         assert_eq!(ids[g.index(5, 2)], 2);
+    }
+
+    const NEW: Weights = Weights {
+        block_iou: 0.25,
+        revive_iou: 0.3,
+        distance: 2.0,
+        gate_px: 8.0,
+        gate_width_factor: 1.0,
+        optimal: true,
+    };
+
+    #[test]
+    fn a_small_box_near_where_its_object_was_expected_is_matched_within_the_gate() {
+        let g = grid();
+        // A 5 × 7 px pedestrian expected 4 px to the left: box IoU 0.11, no shared block.
+        let b = BBox::new(84.0, 80.0, 5.0, 7.0);
+        let expected = [(5, BBox::new(80.0, 80.0, 5.0, 7.0))];
+        let mut next = 9;
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Revived(5)]);
+        // Without the distance term (the matching before issue 14): a new object.
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, W, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Started(9)]);
+        // Beyond the gate (max(8 px, 5 px)): a new object either way.
+        let far = BBox::new(89.0, 80.0, 5.0, 7.0);
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[far], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Started(10)]);
+    }
+
+    #[test]
+    fn optimal_matching_maximises_the_total_where_greedy_takes_the_best_pair_first() {
+        // Box 0 fits object 1 best (0.9) but also object 2 (0.8); box 1 fits only object 1.
+        let pairs = vec![(0.9, 0, 1, false), (0.8, 0, 2, false), (0.7, 1, 1, false)];
+        let mut greedy = greedy_pairs(pairs.clone());
+        greedy.sort();
+        assert_eq!(greedy, vec![(0, 1, false)]);
+        let mut optimal = optimal_pairs(&pairs, 2);
+        optimal.sort();
+        assert_eq!(optimal, vec![(0, 2, false), (1, 1, false)]);
+    }
+
+    #[test]
+    fn the_appearance_term_decides_between_two_equally_near_objects() {
+        let g = grid();
+        let b = BBox::new(80.0, 80.0, 5.0, 7.0);
+        // Two objects expected 2 px left and 2 px right of the box.
+        let expected = [
+            (1, BBox::new(78.0, 80.0, 5.0, 7.0)),
+            (2, BBox::new(82.0, 80.0, 5.0, 7.0)),
+        ];
+        let mut next = 3;
+        let looks = |_: usize, id: ObjectId| if id == 2 { 1.0 } else { 0.0 };
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &looks, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Revived(2)]);
+        let mut ids = vec![NO_OBJECT; g.len()];
+        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        assert!(matches!(out[..], [BoxOutcome::Revived(1 | 2)]), "{out:?}");
     }
 }

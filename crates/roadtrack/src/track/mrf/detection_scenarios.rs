@@ -145,8 +145,18 @@ fn a_car_that_stops_at_a_light_keeps_its_blocks_and_its_id() -> Result<()> {
 
 /// Runs the tracker with the scene's detections; returns the points of every frame.
 fn run_with_boxes(cfg: &MrfConfig, scene: &Scene) -> Result<Vec<Vec<TrackPoint>>> {
+    run_with_boxes_at(cfg, scene, 320, 240)
+}
+
+/// As [`run_with_boxes`], for frames of `width × height` px.
+fn run_with_boxes_at(
+    cfg: &MrfConfig,
+    scene: &Scene,
+    width: u32,
+    height: u32,
+) -> Result<Vec<Vec<TrackPoint>>> {
     let frames: Vec<Frame> = scene.iter().map(|s| s.0.clone()).collect();
-    let mut t = MrfTracker::new(cfg.clone(), 320, 240, 1)?;
+    let mut t = MrfTracker::new(cfg.clone(), width, height, 1)?;
     t.set_background(bootstrap_from_frames(&frames, cfg.background.clone())?)?;
     scene
         .iter()
@@ -216,5 +226,118 @@ fn detector_boxes_split_two_cars_that_enter_side_by_side() -> Result<()> {
     );
     let missed: usize = pixels.values().map(|v| v.1).sum();
     assert!(missed >= 10, "pixels alone separated the cars: {pixels:?}");
+    Ok(())
+}
+
+/// Pedestrians `(id, y_m, x_m at 0 s, speed m/s, top colour)` walking along x on the
+/// `crossing` scene, oblique, 640 × 480 px (as `roadtrack simulate`), with the simulator's
+/// default detection noise (1 px position sd, 5 % size sd, 5 % misses) and no false boxes.
+fn walkers(people: &[(u64, f64, f64, f64, [u8; 3])], frames: u32, seed: u64) -> Result<Scene> {
+    let mut cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames,
+        width: 640,
+        height: 480,
+        ..Default::default()
+    };
+    cfg.detections.false_positives_per_frame = 0.0;
+    let duration = f64::from(frames) / cfg.fps + 1.0;
+    let mut samples = Vec::new();
+    for &(id, y, x0, v, rgb) in people {
+        for t in [0.0, duration] {
+            samples.push((
+                id,
+                TrajectorySample {
+                    time_s: t,
+                    class: ObjectClass::Pedestrian,
+                    x_m: x0 + v * t,
+                    y_m: y,
+                    heading_deg: if v >= 0.0 { 0.0 } else { 180.0 },
+                    length_m: 0.5,
+                    width_m: 0.5,
+                    height_m: Some(1.75),
+                    rgb: Some(rgb),
+                },
+            ));
+        }
+    }
+    let ext = ExternalTrajectories::new(samples)?;
+    let sim = Simulation::from_trajectories(&cfg, seed, ext, Some(frames))?;
+    sim.map(|s| {
+        let s = s?;
+        let truth = s.truth.iter().map(|t| (t.id, t.bbox)).collect();
+        Ok((s.frame, truth, s.detections))
+    })
+    .collect()
+}
+
+#[test]
+fn far_pedestrians_walking_in_a_group_keep_one_id_each() -> Result<()> {
+    // Three pedestrians 5–6 px wide and 8 px apart (1 m at 60 m from the camera) walk
+    // side by side at 1.4 m/s (about 1 px a frame) for 8 s, with the detector's noise of
+    // 1 px and 5 % on boxes this small. A block is wider than each of them.
+    let people = [
+        (1, 60.0, 0.0, 1.4, [150, 40, 40]),
+        (2, 60.0, 1.0, 1.4, [40, 60, 120]),
+        (3, 60.0, 2.0, 1.4, [230, 230, 225]),
+    ];
+    // The matching before issue 14: greedy on the block and expected-box IoUs.
+    let old = MrfConfig {
+        association: super::Association::Greedy,
+        distance_weight: 0.0,
+        appearance_weight: 0.0,
+        velocity_warmup: false,
+        ..MrfConfig::default()
+    };
+    for seed in [1, 2] {
+        let scene = walkers(&people, 80, seed)?;
+        let w = scene[0].1[&1].width;
+        assert!((5.0..7.0).contains(&w), "width {w}");
+        let ids = ids_per_truth(
+            &scene,
+            &run_with_boxes_at(&MrfConfig::default(), &scene, 640, 480)?,
+            3,
+        );
+        let mut all = std::collections::BTreeSet::new();
+        for (gt, (got, missed)) in &ids {
+            assert_eq!(got.len(), 1, "seed {seed}, walker {gt}: ids {got:?}");
+            assert!(
+                *missed <= 8,
+                "seed {seed}, walker {gt}: {missed} frames without a box"
+            );
+            all.extend(got.iter().copied());
+        }
+        assert_eq!(all.len(), 3, "seed {seed}: {ids:?}");
+        // The old matching restarts them: a 5 px box leaves its expected box's IoU within
+        // a frame or two of noise, so the box starts a new id.
+        let before = ids_per_truth(&scene, &run_with_boxes_at(&old, &scene, 640, 480)?, 3);
+        assert!(
+            before.values().any(|(got, _)| got.len() >= 2),
+            "seed {seed}: the old matching kept the ids: {before:?}"
+        );
+    }
+    Ok(())
+}
+
+#[test]
+fn tracking_with_boxes_is_the_same_at_one_and_two_threads() -> Result<()> {
+    let people = [
+        (1, 60.0, 0.0, 1.4, [150, 40, 40]),
+        (2, 60.0, 1.0, 1.4, [40, 60, 120]),
+        (3, 56.0, 14.0, -1.4, [210, 120, 40]),
+    ];
+    let scene = walkers(&people, 40, 1)?;
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| crate::Error::Invalid(e.to_string()))
+    };
+    let cfg = MrfConfig::default();
+    let one = pool(1)?.install(|| run_with_boxes_at(&cfg, &scene, 640, 480))?;
+    let two = pool(2)?.install(|| run_with_boxes_at(&cfg, &scene, 640, 480))?;
+    assert_eq!(one, two);
+    assert!(one.iter().map(Vec::len).sum::<usize>() > 60);
     Ok(())
 }
