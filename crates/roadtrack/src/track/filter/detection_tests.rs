@@ -316,7 +316,7 @@ fn the_detection_phd_count_is_far_closer_to_the_truth_than_the_image_form_on_the
     let cfg = FilterTrackConfig::default();
     let (counts, _) = run_counts(FilterMethod::Phd, &cfg, &steps, 1)?;
     let mae = count_mae(&counts, 10, false);
-    // 26 people in a crowd: the 0.5 is not reached here (1.13 over 300 frames and
+    // 26 people in a crowd: the 0.5 is not reached here (1.01 over 300 frames and
     // three seeds, docs/EXPERIMENTS.md), but the count no longer runs below the truth.
     assert!(mae <= 1.6, "count MAE {mae:.2}: {counts:?}");
     let image = FilterTrackConfig {
