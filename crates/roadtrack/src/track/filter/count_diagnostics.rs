@@ -76,7 +76,8 @@ fn split_frame(
 
 /// Count error of the detection PHD split per frame into [`PARTS`], seeds 1–3, 300 frames.
 /// Run with `cargo test -p roadtrack --lib count_error_split_experiment -- --ignored
-/// --nocapture` (env `RT_SCENES=crossing,intersection,road` picks scenes).
+/// --nocapture` (env `RT_SCENES=crossing,intersection,road` picks scenes, `RT_CONFIG` a
+/// `FilterTrackConfig` TOML instead of the defaults, `RT_FRAMES` the length).
 #[test]
 #[ignore = "experiment, several minutes"]
 fn count_error_split_experiment() -> Result<()> {
@@ -91,7 +92,10 @@ fn count_error_split_experiment() -> Result<()> {
             "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
             _ => (SceneKind::Crossing, ViewKind::Oblique),
         };
-        let cfg = FilterTrackConfig::default();
+        let cfg = match std::env::var("RT_CONFIG") {
+            Ok(path) => FilterTrackConfig::from_toml_file(std::path::Path::new(&path))?,
+            Err(_) => FilterTrackConfig::default(),
+        };
         let mut sums = [0.0; 9];
         let mut abs_without = [0.0; 9];
         let (mut mae, mut n) = (0.0, 0.0);

@@ -220,6 +220,33 @@ fn two_labels_on_one_detection_leave_one_estimate() -> Result<()> {
 }
 
 #[test]
+fn a_detection_beside_a_label_with_its_own_detection_is_unclaimed() -> Result<()> {
+    // One confirmed label at (50, 50); its person's detection and a neighbour's 6 px
+    // away (3 σ: inside the 5 σ birth gate). The association gives the label its own
+    // detection, so the neighbour's is free for a birth.
+    let parts: Vec<(f64, f64, f64, u32)> = (0..20)
+        .map(|k| (50.0 + f64::from(k % 5) * 0.2 - 0.4, 50.0, 0.99 / 20.0, 1))
+        .collect();
+    let f = filter_with(&parts)?;
+    let z = [
+        BoxMeasurement {
+            pos: Point::new(50.0, 50.0),
+            sigma: Point::new(2.0, 2.0),
+        },
+        BoxMeasurement {
+            pos: Point::new(56.0, 50.0),
+            sigma: Point::new(2.0, 2.0),
+        },
+    ];
+    let claims = f.detection_claims(&z, 0.9, 1.0);
+    assert!(claims[0] > 0.95 && claims[1] < 0.5, "{claims:?}");
+    // Alone, the neighbour's detection is the label's (a lagging label keeps its person).
+    let alone = f.detection_claims(&z[1..], 0.9, 1.0);
+    assert!(alone[0] > 0.5, "{alone:?}");
+    Ok(())
+}
+
+#[test]
 fn bad_association_settings_are_refused_by_name() {
     let mut cfg = super::DetectionLikelihoodConfig {
         birth_claim_below: 1.5,

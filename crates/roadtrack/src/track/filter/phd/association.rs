@@ -91,6 +91,7 @@ struct Exclusive {
     c_label: Vec<f64>,
     c_all: Vec<f64>,
     r_miss: Vec<f64>,
+    psi: Vec<f64>,
     p_miss: Vec<f64>,
     p_assoc: Vec<f64>,
 }
@@ -98,7 +99,9 @@ struct Exclusive {
 impl LabelledPhd {
     /// For each of `z`, the probability that an existing label (not a clutter or new
     /// object) is its source: `Σ_ℓ p_ℓj` of [`LabelledPhd::update_detections_exclusive`]
-    /// on the current particles.
+    /// on the current particles; 1 where a label that finds the detection plausible
+    /// (`ψ_ℓj ≥ 1`) is more likely missed than detected (`p_ℓ0 ≥ 0.5`: the detection may be
+    /// that label's object, seen again).
     pub fn detection_claims(
         &self,
         z: &[BoxMeasurement],
@@ -108,8 +111,16 @@ impl LabelledPhd {
         let kappa = clutter_per_frame / self.region().area();
         let e = self.exclusive(z, detection_prob, kappa, None);
         let m = z.len();
+        let nl = e.slot.len();
         (0..m)
-            .map(|j| (0..e.slot.len()).map(|s| e.p_assoc[s * m + j]).sum())
+            .map(|j| {
+                let idle = (0..nl).any(|s| e.psi[s * m + j] >= 1.0 && e.p_miss[s] >= 0.5);
+                if idle {
+                    1.0
+                } else {
+                    (0..nl).map(|s| e.p_assoc[s * m + j]).sum()
+                }
+            })
             .collect()
     }
 
@@ -194,6 +205,7 @@ impl LabelledPhd {
             c_label,
             c_all,
             r_miss,
+            psi,
             p_miss,
             p_assoc,
         }
@@ -235,6 +247,7 @@ impl LabelledPhd {
             r_miss,
             p_miss,
             p_assoc,
+            ..
         } = self.exclusive(z, pd, kappa, image_h);
         let p = &mut self.particles;
         let n = p.len();
