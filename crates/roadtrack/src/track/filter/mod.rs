@@ -15,6 +15,8 @@
 
 pub mod config;
 #[cfg(test)]
+mod count_diagnostics;
+#[cfg(test)]
 mod detection_tests;
 pub mod detections;
 pub mod motion;
@@ -29,7 +31,7 @@ pub use config::{FilterMethod, FilterTrackConfig};
 pub use detections::{BoxMeasurement, DetectionLikelihoodConfig, Measurements};
 pub use motion::{ConstantVelocity, VelocityNoise};
 pub use particle::{ParticleFilterConfig, ParticleFilterTracker};
-pub use phd::{LabelUpdate, LabelledPhd, PhdConfig, PhdTracker};
+pub use phd::{LabelAssociation, LabelUpdate, LabelledPhd, PhdConfig, PhdTracker};
 pub use points::{BirthProposal, PointFilterConfig, filter_points};
 pub use resample::ResamplingScheme;
 pub use tracker::{FilterTracker, FrameCount};

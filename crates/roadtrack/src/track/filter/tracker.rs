@@ -142,6 +142,16 @@ impl FilterTracker {
         self.runner.as_ref().and_then(|r| r.window_px)
     }
 
+    /// Every PHD label's estimate, reported or not (empty for the PF or before the
+    /// first step); for diagnostics in tests.
+    #[cfg(test)]
+    pub(super) fn phd_labels(&self) -> Vec<super::phd::LabelEstimate> {
+        match self.runner.as_ref().map(|r| &r.filter) {
+            Some(Filter::Phd(t)) => t.filter().map_or_else(Vec::new, |f| f.all_estimates()),
+            _ => Vec::new(),
+        }
+    }
+
     /// Makes the runner from the pending frames and tracks them.
     fn start(&mut self) -> Result<Vec<FramePoints>> {
         let runner = Runner::new(

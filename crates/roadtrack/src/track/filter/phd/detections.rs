@@ -2,7 +2,7 @@
 //! standard SMC-PHD update (Vo, Singh & Doucet 2003) over box measurements, each with its
 //! own `σ` per axis (see [`crate::track::filter::detections`]).
 
-use super::{LabelUpdate, LabelledPhd};
+use super::{LabelAssociation, LabelUpdate, LabelledPhd};
 use crate::geometry::Point;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -44,6 +44,12 @@ pub struct DetectionModel {
     pub birth_gate_sigmas: f64,
     /// Step d) for labelled particles.
     pub label_update: LabelUpdate,
+    /// With [`LabelUpdate::Bernoulli`]: whether a detection can explain several labels.
+    pub association: LabelAssociation,
+    /// With [`LabelAssociation::Exclusive`]: a detection inside the birth gate still
+    /// proposes a birth when the labels' probability of being its source
+    /// ([`LabelledPhd::detection_claims`]) is below this; 0: the gate alone.
+    pub birth_claim_below: f64,
 }
 
 impl LabelledPhd {

@@ -19,9 +19,11 @@
 //! measurements.
 //!
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
-//! `detections.rs` (step d with detections as measurements),
+//! `detections.rs` (step d with detections as measurements), `association.rs` (the same
+//! with a detection explaining at most one label),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
+mod association;
 mod config;
 mod detections;
 mod labelled;
@@ -30,6 +32,7 @@ mod tests;
 mod tracker;
 
 pub use super::FilterStageTimes;
+pub use association::{LabelAssociation, marginal_associations};
 pub use config::{LabelUpdate, PhdConfig};
 pub use detections::{BoxMeasurement, DetectionModel};
 pub use labelled::LabelledPhd;

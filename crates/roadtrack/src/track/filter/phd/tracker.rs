@@ -2,7 +2,8 @@
 
 use super::super::SurveillanceRegion;
 use super::{
-    BoxMeasurement, DetectionModel, FilterStageTimes, LabelEstimate, LabelledPhd, PhdConfig,
+    BoxMeasurement, DetectionModel, FilterStageTimes, LabelAssociation, LabelEstimate, LabelUpdate,
+    LabelledPhd, PhdConfig,
 };
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -189,10 +190,22 @@ impl PhdTracker {
         // the detection's σ from a label's mean after prediction.
         let predicted: Vec<Point> = filter.all_estimates().iter().map(|e| e.pos).collect();
         let gate2 = model.birth_gate_sigmas.powi(2);
+        let claims = if model.label_update == LabelUpdate::Bernoulli
+            && model.association == LabelAssociation::Exclusive
+            && model.birth_claim_below > 0.0
+        {
+            filter.detection_claims(measurements, model.detection_prob, model.clutter_per_frame)
+        } else {
+            Vec::new()
+        };
         let free: Vec<BoxMeasurement> = measurements
             .iter()
-            .filter(|m| !predicted.iter().any(|p| mahalanobis2(m, *p) <= gate2))
-            .copied()
+            .enumerate()
+            .filter(|&(j, m)| {
+                !predicted.iter().any(|p| mahalanobis2(m, *p) <= gate2)
+                    || claims.get(j).is_some_and(|&c| c < model.birth_claim_below)
+            })
+            .map(|(_, m)| *m)
             .collect();
         filter.add_labelled_births(&free, per_point);
         self.times.predict += t0.elapsed();
@@ -217,13 +230,24 @@ impl PhdTracker {
         };
         self.times.likelihood += t0.elapsed();
         let t0 = Instant::now();
-        filter.update_detections(
-            measurements,
-            model.detection_prob,
-            model.clutter_per_frame,
-            model.label_update,
-            image_h,
-        );
+        if model.label_update == LabelUpdate::Bernoulli
+            && model.association == LabelAssociation::Exclusive
+        {
+            filter.update_detections_exclusive(
+                measurements,
+                model.detection_prob,
+                model.clutter_per_frame,
+                image_h,
+            );
+        } else {
+            filter.update_detections(
+                measurements,
+                model.detection_prob,
+                model.clutter_per_frame,
+                model.label_update,
+                image_h,
+            );
+        }
         self.times.update += t0.elapsed();
         let t0 = Instant::now();
         filter.update_labels_detections();
