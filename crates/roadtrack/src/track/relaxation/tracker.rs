@@ -78,6 +78,19 @@ pub struct RelaxationTrackerConfig {
     // the tracker runs in a pipeline) is cut by it and passes: a vehicle leaving the view
     // shrinks to a sliver in a frame or two.
     pub size_ratio_gate: f64,
+    /// Colour of an upright box (ours): a detection whose box is at least `upright_aspect`
+    /// times as high as wide takes the mean colour of the central `f × f` part of its box,
+    /// read from the frame, instead of its own colour. In `(0, 1]`; default 1: the
+    /// detection's colour. Applies where the frame's image is known (in a pipeline).
+    // Choice: a pedestrian fills about half of her box's width; the rest is pavement, so
+    // the whole box's colour of two pedestrians side by side differs little and the colour
+    // start cannot tell a walker from the people she passes. The central part is mostly
+    // her. Upright boxes only: a small aerial car's box (14 × 5 px) has too few pixels to
+    // shrink, and a vehicle fills its box.
+    pub upright_colour_fraction: f64,
+    /// See `upright_colour_fraction`: height / width from which a box counts as upright.
+    /// Default 1.5.
+    pub upright_aspect: f64,
 }
 
 impl Default for RelaxationTrackerConfig {
@@ -92,6 +105,8 @@ impl Default for RelaxationTrackerConfig {
             predict: false,
             position_alpha: 1.0,
             size_ratio_gate: 0.0,
+            upright_colour_fraction: 1.0,
+            upright_aspect: 1.5,
         }
     }
 }
@@ -139,6 +154,20 @@ impl RelaxationTrackerConfig {
                 "must be 0 (off) or a finite factor of at least 1",
             ));
         }
+        if !(self.upright_colour_fraction > 0.0 && self.upright_colour_fraction <= 1.0) {
+            return Err(crate::Error::config(
+                "RelaxationTrackerConfig",
+                "upright_colour_fraction",
+                "must be in (0, 1]",
+            ));
+        }
+        if !(self.upright_aspect.is_finite() && self.upright_aspect > 0.0) {
+            return Err(crate::Error::config(
+                "RelaxationTrackerConfig",
+                "upright_aspect",
+                "must be finite and positive",
+            ));
+        }
         if !(self.fallback_box_px.is_finite() && self.fallback_box_px >= 0.0) {
             return Err(crate::Error::config(
                 "RelaxationTrackerConfig",
@@ -165,7 +194,8 @@ struct Track {
 /// Chains relaxation matchings of consecutive frames into tracks.
 #[derive(Debug, Clone)]
 pub struct RelaxationTracker {
-    config: RelaxationTrackerConfig,
+    // Boxed: the config is most of the tracker's size, and `BuiltTracker` holds it inline.
+    config: Box<RelaxationTrackerConfig>,
     tracks: Vec<Track>,
     next_id: u64,
     /// Width and height of the current frame's image, px, when known (boxes at its edge
@@ -181,7 +211,7 @@ impl RelaxationTracker {
     pub fn new(config: RelaxationTrackerConfig) -> Result<Self> {
         config.validate()?;
         Ok(Self {
-            config,
+            config: Box::new(config),
             tracks: Vec::new(),
             next_id: 1,
             image_size: None,
@@ -341,6 +371,24 @@ impl RelaxationTracker {
         (!at_edge).then_some((w, h))
     }
 
+    /// `d` with the colour of the central part of its box when the box is upright
+    /// ([`RelaxationTrackerConfig::upright_colour_fraction`]); `d` itself otherwise or when
+    /// that part misses the image.
+    pub fn upright_colour(&self, d: &Detection, image: &image::RgbImage) -> Detection {
+        let f = self.config.upright_colour_fraction;
+        let mut out = d.clone();
+        if let Some((w, h)) = d.size_px
+            && f < 1.0
+            && h >= self.config.upright_aspect * w
+        {
+            let centre = BBox::from_centre(d.pos_px, f * w, f * h);
+            if let Some(c) = crate::detect::file::mean_colour(image, &centre) {
+                out.colour_rgb = Some(c);
+            }
+        }
+        out
+    }
+
     /// The second assignment: unpaired live tracks, predicted to `frame`, against unclaimed
     /// detections, minimum total distance within the gate.
     fn rematch(
@@ -405,8 +453,16 @@ impl crate::track::Tracker for RelaxationTracker {
     ) -> Result<Vec<crate::track::FramePoints>> {
         let (w, h) = frame.image.dimensions();
         self.image_size = Some((f64::from(w), f64::from(h)));
-        let points =
-            RelaxationTracker::step(self, frame.index, frame.time_s, &detections.detections)?;
+        let points = if self.config.upright_colour_fraction < 1.0 {
+            let own: Vec<Detection> = detections
+                .detections
+                .iter()
+                .map(|d| self.upright_colour(d, &frame.image))
+                .collect();
+            RelaxationTracker::step(self, frame.index, frame.time_s, &own)?
+        } else {
+            RelaxationTracker::step(self, frame.index, frame.time_s, &detections.detections)?
+        };
         Ok(vec![crate::track::FramePoints::new(frame, points)])
     }
 
@@ -679,6 +735,66 @@ mod tests {
         };
         assert_eq!(ids(0.0)?, vec![1, 1]);
         assert_eq!(ids(100.0)?, vec![1, 2]);
+        Ok(())
+    }
+
+    #[test]
+    fn upright_boxes_take_the_colour_of_their_centre() -> Result<()> {
+        use image::{Rgb, RgbImage};
+        // Grey pavement; a red pedestrian 4 px wide in the middle of a 10 × 30 px box, and
+        // a car filling a 30 × 10 px box.
+        let mut image = RgbImage::from_pixel(100, 100, Rgb([100, 100, 100]));
+        for y in 10..40 {
+            for x in 13..17 {
+                image.put_pixel(x, y, Rgb([200, 0, 0]));
+            }
+        }
+        let walker = Detection {
+            colour_rgb: Some([1.0, 2.0, 3.0]),
+            size_px: Some((10.0, 30.0)),
+            ..Detection::at(1, 1, Point::new(15.0, 25.0))
+        };
+        let car = Detection {
+            size_px: Some((30.0, 10.0)),
+            ..walker.clone()
+        };
+        let tracker = |f: f64| {
+            RelaxationTracker::new(RelaxationTrackerConfig {
+                upright_colour_fraction: f,
+                ..Default::default()
+            })
+        };
+        let t = tracker(0.4)?;
+        // The central 4 × 12 px are all the pedestrian.
+        assert_eq!(
+            t.upright_colour(&walker, &image).colour_rgb,
+            Some([200.0, 0.0, 0.0])
+        );
+        // A wide box keeps the detection's colour, and so does every box by default.
+        assert_eq!(t.upright_colour(&car, &image).colour_rgb, car.colour_rgb);
+        assert_eq!(
+            tracker(1.0)?.upright_colour(&walker, &image).colour_rgb,
+            walker.colour_rgb
+        );
+        for (field, cfg) in [
+            (
+                "upright_colour_fraction",
+                RelaxationTrackerConfig {
+                    upright_colour_fraction: 0.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "upright_aspect",
+                RelaxationTrackerConfig {
+                    upright_aspect: f64::NAN,
+                    ..Default::default()
+                },
+            ),
+        ] {
+            let m = RelaxationTracker::new(cfg).expect_err(field).to_string();
+            assert!(m.contains(field), "{m}");
+        }
         Ok(())
     }
 }
