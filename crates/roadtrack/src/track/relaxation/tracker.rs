@@ -69,6 +69,28 @@ pub struct RelaxationTrackerConfig {
     /// and the filtered state is what the next frame is matched against. Default 1: the
     /// detection's own centre (no smoothing).
     pub position_alpha: f64,
+    /// Size gate (ours): a track and a detection whose box widths or heights differ by more
+    /// than this factor are never paired (by the relaxation or the second assignment).
+    /// Default 0: off. Boxes without a size pass.
+    // Choice: the relaxation pairs centres only, so a pedestrian's track walking under a
+    // passing truck takes the truck's detection; a factor of 2 or more still lets a box
+    // grow or shrink as an object turns. A box within 1 px of the image's edge (known when
+    // the tracker runs in a pipeline) is cut by it and passes: a vehicle leaving the view
+    // shrinks to a sliver in a frame or two.
+    pub size_ratio_gate: f64,
+    /// Colour of an upright box (ours): a detection whose box is at least `upright_aspect`
+    /// times as high as wide takes the mean colour of the central `f × f` part of its box,
+    /// read from the frame, instead of its own colour. In `(0, 1]`; default 1: the
+    /// detection's colour. Applies where the frame's image is known (in a pipeline).
+    // Choice: a pedestrian fills about half of her box's width; the rest is pavement, so
+    // the whole box's colour of two pedestrians side by side differs little and the colour
+    // start cannot tell a walker from the people she passes. The central part is mostly
+    // her. Upright boxes only: a small aerial car's box (14 × 5 px) has too few pixels to
+    // shrink, and a vehicle fills its box.
+    pub upright_colour_fraction: f64,
+    /// See `upright_colour_fraction`: height / width from which a box counts as upright.
+    /// Default 1.5.
+    pub upright_aspect: f64,
 }
 
 impl Default for RelaxationTrackerConfig {
@@ -82,6 +104,9 @@ impl Default for RelaxationTrackerConfig {
             rematch_box_fraction: 0.75,
             predict: false,
             position_alpha: 1.0,
+            size_ratio_gate: 0.0,
+            upright_colour_fraction: 1.0,
+            upright_aspect: 1.5,
         }
     }
 }
@@ -120,6 +145,29 @@ impl RelaxationTrackerConfig {
                 "must be in (0, 1]",
             ));
         }
+        if !(self.size_ratio_gate == 0.0
+            || (self.size_ratio_gate.is_finite() && self.size_ratio_gate >= 1.0))
+        {
+            return Err(crate::Error::config(
+                "RelaxationTrackerConfig",
+                "size_ratio_gate",
+                "must be 0 (off) or a finite factor of at least 1",
+            ));
+        }
+        if !(self.upright_colour_fraction > 0.0 && self.upright_colour_fraction <= 1.0) {
+            return Err(crate::Error::config(
+                "RelaxationTrackerConfig",
+                "upright_colour_fraction",
+                "must be in (0, 1]",
+            ));
+        }
+        if !(self.upright_aspect.is_finite() && self.upright_aspect > 0.0) {
+            return Err(crate::Error::config(
+                "RelaxationTrackerConfig",
+                "upright_aspect",
+                "must be finite and positive",
+            ));
+        }
         if !(self.fallback_box_px.is_finite() && self.fallback_box_px >= 0.0) {
             return Err(crate::Error::config(
                 "RelaxationTrackerConfig",
@@ -138,15 +186,21 @@ struct Track {
     /// Displacement per frame at the last match.
     velocity: [f64; 2],
     colour: Option<[f64; 3]>,
+    /// The last detection's box size, px, unless that box touched the image's edge.
+    size: Option<(f64, f64)>,
     last_frame: u32,
 }
 
 /// Chains relaxation matchings of consecutive frames into tracks.
 #[derive(Debug, Clone)]
 pub struct RelaxationTracker {
-    config: RelaxationTrackerConfig,
+    // Boxed: the config is most of the tracker's size, and `BuiltTracker` holds it inline.
+    config: Box<RelaxationTrackerConfig>,
     tracks: Vec<Track>,
     next_id: u64,
+    /// Width and height of the current frame's image, px, when known (boxes at its edge
+    /// pass the size gate).
+    image_size: Option<(f64, f64)>,
 }
 
 impl RelaxationTracker {
@@ -157,9 +211,10 @@ impl RelaxationTracker {
     pub fn new(config: RelaxationTrackerConfig) -> Result<Self> {
         config.validate()?;
         Ok(Self {
-            config,
+            config: Box::new(config),
             tracks: Vec::new(),
             next_id: 1,
+            image_size: None,
         })
     }
 
@@ -210,7 +265,9 @@ impl RelaxationTracker {
         // Resolve many-to-one claims: best probability, then older track.
         let mut owner: Vec<Option<usize>> = vec![None; detections.len()];
         for (n, k) in matching.partner.iter().enumerate() {
-            if let Some(k) = *k {
+            if let Some(k) = *k
+                && self.sizes_match(&self.tracks[n], &detections[k])
+            {
                 let better = match owner[k] {
                     None => true,
                     Some(o) => matching.probability[n] > matching.probability[o],
@@ -227,6 +284,7 @@ impl RelaxationTracker {
         let alpha = self.config.position_alpha;
         for (k, d) in detections.iter().enumerate() {
             let mut centre = d.pos_px;
+            let size = self.unclipped_size(d);
             let id = match owner[k] {
                 Some(n) => {
                     let t = &mut self.tracks[n];
@@ -247,6 +305,7 @@ impl RelaxationTracker {
                         t.pos = d.pos_px;
                     }
                     t.colour = d.colour_rgb.or(t.colour);
+                    t.size = size;
                     t.last_frame = frame;
                     t.id
                 }
@@ -258,6 +317,7 @@ impl RelaxationTracker {
                         pos: d.pos_px,
                         velocity: [0.0, 0.0],
                         colour: d.colour_rgb,
+                        size,
                         last_frame: frame,
                     });
                     id
@@ -287,6 +347,48 @@ impl RelaxationTracker {
 }
 
 impl RelaxationTracker {
+    /// Whether `track` and `d` pass the size gate ([`RelaxationTrackerConfig::size_ratio_gate`]).
+    fn sizes_match(&self, track: &Track, d: &Detection) -> bool {
+        let r = self.config.size_ratio_gate;
+        match (track.size, self.unclipped_size(d)) {
+            (Some((w0, h0)), Some((w1, h1))) if r > 0.0 => {
+                let within = |a: f64, b: f64| a <= r * b && b <= r * a;
+                within(w0, w1) && within(h0, h1)
+            }
+            _ => true,
+        }
+    }
+
+    /// `d`'s box size, or `None` when the box lies within 1 px of the image's edge.
+    fn unclipped_size(&self, d: &Detection) -> Option<(f64, f64)> {
+        let (w, h) = d.size_px?;
+        let b = d.bbox()?;
+        let at_edge = b.left <= 1.0
+            || b.top <= 1.0
+            || self
+                .image_size
+                .is_some_and(|(iw, ih)| b.left + w >= iw - 1.0 || b.top + h >= ih - 1.0);
+        (!at_edge).then_some((w, h))
+    }
+
+    /// `d` with the colour of the central part of its box when the box is upright
+    /// ([`RelaxationTrackerConfig::upright_colour_fraction`]); `d` itself otherwise or when
+    /// that part misses the image.
+    pub fn upright_colour(&self, d: &Detection, image: &image::RgbImage) -> Detection {
+        let f = self.config.upright_colour_fraction;
+        let mut out = d.clone();
+        if let Some((w, h)) = d.size_px
+            && f < 1.0
+            && h >= self.config.upright_aspect * w
+        {
+            let centre = BBox::from_centre(d.pos_px, f * w, f * h);
+            if let Some(c) = crate::detect::file::mean_colour(image, &centre) {
+                out.colour_rgb = Some(c);
+            }
+        }
+        out
+    }
+
     /// The second assignment: unpaired live tracks, predicted to `frame`, against unclaimed
     /// detections, minimum total distance within the gate.
     fn rematch(
@@ -324,11 +426,13 @@ impl RelaxationTracker {
             );
             for &k in &cols {
                 let d = p.distance(detections[k].pos_px);
-                cost.push(if d <= gate(&detections[k]) {
-                    d
-                } else {
-                    forbidden
-                });
+                cost.push(
+                    if d <= gate(&detections[k]) && self.sizes_match(t, &detections[k]) {
+                        d
+                    } else {
+                        forbidden
+                    },
+                );
             }
         }
         let pairs = crate::assignment::linear_sum_assignment(&cost, rows.len(), cols.len())?;
@@ -347,8 +451,18 @@ impl crate::track::Tracker for RelaxationTracker {
         frame: &crate::frame::Frame,
         detections: &crate::detect::FrameDetections,
     ) -> Result<Vec<crate::track::FramePoints>> {
-        let points =
-            RelaxationTracker::step(self, frame.index, frame.time_s, &detections.detections)?;
+        let (w, h) = frame.image.dimensions();
+        self.image_size = Some((f64::from(w), f64::from(h)));
+        let points = if self.config.upright_colour_fraction < 1.0 {
+            let own: Vec<Detection> = detections
+                .detections
+                .iter()
+                .map(|d| self.upright_colour(d, &frame.image))
+                .collect();
+            RelaxationTracker::step(self, frame.index, frame.time_s, &own)?
+        } else {
+            RelaxationTracker::step(self, frame.index, frame.time_s, &detections.detections)?
+        };
         Ok(vec![crate::track::FramePoints::new(frame, points)])
     }
 
@@ -556,6 +670,130 @@ mod tests {
             };
             let m = RelaxationTracker::new(cfg).expect_err("alpha").to_string();
             assert!(m.contains("position_alpha"), "{m}");
+        }
+        Ok(())
+    }
+
+    fn boxed(frame: u32, id: u64, x: f64, size: (f64, f64)) -> Detection {
+        Detection {
+            colour_rgb: Some([120.0, 120.0, 120.0]),
+            size_px: Some(size),
+            ..Detection::at(frame, id, Point::new(x, 100.0))
+        }
+    }
+
+    #[test]
+    fn the_size_gate_keeps_a_pedestrian_track_off_a_truck() -> Result<()> {
+        // A pedestrian (10 × 30 px) is hidden by a truck (90 × 50 px) whose centre passes
+        // 4 px from it; then both are seen.
+        let frames = [
+            vec![boxed(1, 1, 100.0, (10.0, 30.0))],
+            vec![boxed(2, 1, 104.0, (90.0, 50.0))],
+            vec![
+                boxed(3, 1, 100.0, (10.0, 30.0)),
+                boxed(3, 2, 114.0, (90.0, 50.0)),
+            ],
+        ];
+        let ids = |gate: f64| -> Result<Vec<Vec<u64>>> {
+            let mut t = RelaxationTracker::new(RelaxationTrackerConfig {
+                size_ratio_gate: gate,
+                ..Default::default()
+            })?;
+            frames
+                .iter()
+                .zip(1..)
+                .map(|(d, f)| Ok(ids_by_detection(&t.step(f, 0.0, d)?)))
+                .collect()
+        };
+        // Without the gate the pedestrian's track takes the truck.
+        assert_eq!(ids(0.0)?[1], vec![1]);
+        // With it the truck starts its own track and the pedestrian keeps hers.
+        assert_eq!(ids(2.0)?, vec![vec![1], vec![2], vec![1, 2]]);
+        for bad in [0.5, f64::INFINITY, f64::NAN, -1.0] {
+            let cfg = RelaxationTrackerConfig {
+                size_ratio_gate: bad,
+                ..Default::default()
+            };
+            let m = RelaxationTracker::new(cfg).expect_err("gate").to_string();
+            assert!(m.contains("size_ratio_gate"), "{m}");
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn a_box_cut_by_the_image_edge_passes_the_size_gate() -> Result<()> {
+        // A car (40 × 20 px) leaves the view on the left: its box shrinks to 16 px. Away
+        // from the edge the same change of size is another object.
+        let ids = |x0: f64| -> Result<Vec<u64>> {
+            let mut t = RelaxationTracker::new(RelaxationTrackerConfig {
+                size_ratio_gate: 2.0,
+                ..Default::default()
+            })?;
+            let a = t.step(1, 0.0, &[boxed(1, 1, x0 + 22.0, (40.0, 20.0))])?[0].id;
+            let b = t.step(2, 0.1, &[boxed(2, 1, x0 + 8.0, (16.0, 20.0))])?[0].id;
+            Ok(vec![a, b])
+        };
+        assert_eq!(ids(0.0)?, vec![1, 1]);
+        assert_eq!(ids(100.0)?, vec![1, 2]);
+        Ok(())
+    }
+
+    #[test]
+    fn upright_boxes_take_the_colour_of_their_centre() -> Result<()> {
+        use image::{Rgb, RgbImage};
+        // Grey pavement; a red pedestrian 4 px wide in the middle of a 10 × 30 px box, and
+        // a car filling a 30 × 10 px box.
+        let mut image = RgbImage::from_pixel(100, 100, Rgb([100, 100, 100]));
+        for y in 10..40 {
+            for x in 13..17 {
+                image.put_pixel(x, y, Rgb([200, 0, 0]));
+            }
+        }
+        let walker = Detection {
+            colour_rgb: Some([1.0, 2.0, 3.0]),
+            size_px: Some((10.0, 30.0)),
+            ..Detection::at(1, 1, Point::new(15.0, 25.0))
+        };
+        let car = Detection {
+            size_px: Some((30.0, 10.0)),
+            ..walker.clone()
+        };
+        let tracker = |f: f64| {
+            RelaxationTracker::new(RelaxationTrackerConfig {
+                upright_colour_fraction: f,
+                ..Default::default()
+            })
+        };
+        let t = tracker(0.4)?;
+        // The central 4 × 12 px are all the pedestrian.
+        assert_eq!(
+            t.upright_colour(&walker, &image).colour_rgb,
+            Some([200.0, 0.0, 0.0])
+        );
+        // A wide box keeps the detection's colour, and so does every box by default.
+        assert_eq!(t.upright_colour(&car, &image).colour_rgb, car.colour_rgb);
+        assert_eq!(
+            tracker(1.0)?.upright_colour(&walker, &image).colour_rgb,
+            walker.colour_rgb
+        );
+        for (field, cfg) in [
+            (
+                "upright_colour_fraction",
+                RelaxationTrackerConfig {
+                    upright_colour_fraction: 0.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "upright_aspect",
+                RelaxationTrackerConfig {
+                    upright_aspect: f64::NAN,
+                    ..Default::default()
+                },
+            ),
+        ] {
+            let m = RelaxationTracker::new(cfg).expect_err(field).to_string();
+            assert!(m.contains(field), "{m}");
         }
         Ok(())
     }
