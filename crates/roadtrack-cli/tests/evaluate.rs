@@ -527,3 +527,41 @@ fn detection_table_match_rate_occlusion_and_ospa_run_without_tracks() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+#[test]
+fn a_truth_without_pedestrians_warns_that_the_default_scores_pedestrians_only() {
+    let d = tempfile::tempdir().expect("tempdir");
+    // Two cars (MOT17 class 3) tracked perfectly.
+    let gt = write(
+        d.path(),
+        "gt.txt",
+        "1,1,10,10,20,10,1,3,1\n1,2,50,10,20,10,1,3,1\n2,1,12,10,20,10,1,3,1\n2,2,52,10,20,10,1,3,1\n",
+    );
+    let tracks = write(
+        d.path(),
+        "t.txt",
+        "1,7,10,10,20,10,1,-1,-1,-1\n1,8,50,10,20,10,1,-1,-1,-1\n2,7,12,10,20,10,1,-1,-1,-1\n2,8,52,10,20,10,1,-1,-1,-1\n",
+    );
+    let o = run(&[&"--truth", &gt, &"--tracks", &tracks, &"--json"]);
+    let m = json_of(&o);
+    assert!(
+        m["HOTA"].as_f64().unwrap_or(0.0) < 0.5,
+        "pedestrian mode scores no car: {m}"
+    );
+    let err = stderr(&o);
+    assert!(
+        err.contains("no pedestrians") && err.contains("--classes agnostic"),
+        "{err}"
+    );
+    let o = run(&[
+        &"--truth",
+        &gt,
+        &"--tracks",
+        &tracks,
+        &"--json",
+        &"--classes",
+        &"agnostic",
+    ]);
+    assert!((json_of(&o)["HOTA"].as_f64().unwrap_or(0.0) - 1.0).abs() < 1e-9);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}

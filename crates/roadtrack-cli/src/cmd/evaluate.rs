@@ -206,6 +206,27 @@ fn read_tracker(path: &Path) -> Result<(Vec<MotTrackRow>, Option<Vec<u32>>)> {
     }
 }
 
+/// The default `--classes pedestrian` (MOT17) scores class 1 only: on a truth without
+/// pedestrians (a road of vehicles) every score is 0 whatever the tracker did. Say so on
+/// stderr (even with `-q`: the numbers would mislead), with the flag that scores the rest.
+fn warn_if_no_pedestrians(rows: &[MotGtRow], cfg: &EvalConfig, truth: Option<&Path>) {
+    if cfg.mode != ClassMode::Pedestrian || rows.iter().any(|r| r.class == 1) {
+        return;
+    }
+    let others = rows
+        .iter()
+        .filter(|r| cfg.classes.contains(&r.class))
+        .count();
+    if others > 0 {
+        eprintln!(
+            "warning: {} has no pedestrians (MOT17 class 1) but {others} boxes of other \
+             classes; --classes pedestrian (the default, MOT17's) scores pedestrians only: \
+             use --classes agnostic (all classes merged) or per-class",
+            truth.unwrap_or(Path::new("the truth")).display()
+        );
+    }
+}
+
 pub fn run(args: Args, ui: &Ui) -> Result<()> {
     let mut cfg: EvalConfig = load_config(args.config.as_deref())?;
     if let Some(c) = args.classes {
@@ -263,6 +284,9 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
 
     // Tracking metrics.
     let tracker = args.tracks.as_deref().map(read_tracker).transpose()?;
+    if let (Some(t), Some(_)) = (&truth, &tracker) {
+        warn_if_no_pedestrians(&t.rows, &cfg, args.truth.as_deref());
+    }
     if let (Some(t), Some((rows, classes))) = (&truth, &tracker) {
         let bar = ui.progress(None, "evaluate");
         bar.tick();
