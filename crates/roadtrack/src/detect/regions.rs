@@ -263,20 +263,27 @@ pub fn extract_regions_split(
 ) -> Vec<Region> {
     use imageproc::region_labelling::{Connectivity, connected_components};
     let labels = connected_components(mask, Connectivity::Eight, image::Luma([0u8]));
-    // Labels are assigned in raster order of first appearance, 1..=n.
-    let n = labels.pixels().map(|p| p[0]).max().unwrap_or(0) as usize;
-    let mut acc = vec![Acc::EMPTY; n + 1];
+    // Labels are assigned in raster order of first appearance, 1..=n: the accumulators grow
+    // as labels appear (one pass over the labels, not two).
+    let mut acc = vec![Acc::EMPTY];
     let (w, h) = labels.dimensions();
     let img_ok = image.dimensions() == (w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let l = labels.get_pixel(x, y)[0] as usize;
+    let px = image.as_raw();
+    for (y, row) in labels.as_raw().chunks_exact(w.max(1) as usize).enumerate() {
+        for (x, &l) in row.iter().enumerate() {
             if l == 0 {
                 continue;
             }
-            acc[l].add(x, y, w, img_ok.then(|| image.get_pixel(x, y)));
+            let l = l as usize;
+            if l >= acc.len() {
+                acc.resize(l + 1, Acc::EMPTY);
+            }
+            let i = 3 * (y * w as usize + x);
+            let rgb = img_ok.then(|| image::Rgb([px[i], px[i + 1], px[i + 2]]));
+            acc[l].add(x as u32, y as u32, w, rgb.as_ref());
         }
     }
+    let n = acc.len() - 1;
     let keep =
         |a: &Acc| a.n >= u64::from(config.min_area_px) && a.n <= u64::from(config.max_area_px);
     if splitter.is_none() && columns.is_none() {
