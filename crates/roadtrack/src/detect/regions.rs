@@ -107,6 +107,11 @@ fn square_morphology(mask: &image::GrayImage, r: u32, op: Morph) -> image::GrayI
     let src = mask.as_raw();
     let mut tmp = vec![0u8; wu * hu];
     for (row, dst) in src.chunks_exact(wu).zip(tmp.chunks_exact_mut(wu)) {
+        // An empty row stays empty under erosion and dilation (`tmp` is zeroed); most rows
+        // of a traffic frame are empty, and this test is one vectorised scan.
+        if row.iter().all(|&v| v == 0) {
+            continue;
+        }
         let mut count = row[..ru.min(wu)].iter().filter(|&&v| v != 0).count() as u16;
         for x in 0..wu {
             if x + ru < wu && row[x + ru] != 0 {
