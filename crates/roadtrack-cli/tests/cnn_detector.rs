@@ -120,3 +120,44 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         .expect("run");
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+#[test]
+fn from_weights_writes_a_model_the_detector_runs_and_bad_weights_exit_1() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // The trainer's JSON checkpoint format: the parity fixture's `weights` object.
+    let text = std::fs::read_to_string(cnn_fixture("centernet_parity.json")).expect("fixture");
+    let parity: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let weights = dir.path().join("w.json");
+    std::fs::write(&weights, parity["weights"].to_string()).expect("write");
+    let model = dir.path().join("m.onnx");
+    let o = bin()
+        .args(["-q", "train", "--detector", "--from-weights"])
+        .arg(&weights)
+        .arg("-o")
+        .arg(&model)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = bin()
+        .args(["-q", "detect"])
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--model"])
+        .arg(&model)
+        .arg("-o")
+        .arg(dir.path().join("d.csv"))
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Weights that are not a checkpoint: exit 1 naming the file.
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, "{\"shape\": 3}").expect("write");
+    let o = bin()
+        .args(["-q", "train", "--detector", "--from-weights"])
+        .arg(&bad)
+        .arg("-o")
+        .arg(dir.path().join("x.onnx"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+}

@@ -47,20 +47,26 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
     )
 }
 
+/// `--from-weights W.json`: a JSON checkpoint of the trainer written as the ONNX model.
+#[cfg(feature = "cnn")]
+fn convert_weights(weights: &std::path::Path, output: &std::path::Path, ui: &Ui) -> Result<()> {
+    use anyhow::Context as _;
+    let text = std::fs::read_to_string(weights).map_err(|e| roadtrack::Error::io(weights, e))?;
+    let w = roadtrack_cnn::centernet::CenterNetWeights::from_json(&text)
+        .with_context(|| format!("reading {}", weights.display()))?;
+    roadtrack_cnn::centernet::write_onnx(output, &w)
+        .with_context(|| format!("writing {}", output.display()))?;
+    ui.info(format!("wrote {}", output.display()));
+    Ok(())
+}
+
 /// Without the `learn` feature there is no trainer (`--from-weights` still converts when
 /// the `cnn` feature is on).
 #[cfg(not(feature = "learn"))]
 pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     #[cfg(feature = "cnn")]
     if let Some(path) = &args.detector_args.from_weights {
-        use anyhow::Context as _;
-        let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
-        let w = roadtrack_cnn::centernet::CenterNetWeights::from_json(&text)
-            .with_context(|| format!("reading {}", path.display()))?;
-        roadtrack_cnn::centernet::write_onnx(&args.output, &w)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-        ui.info(format!("wrote {}", args.output.display()));
-        return Ok(());
+        return convert_weights(path, &args.output, ui);
     }
     let _ = (args, ui);
     anyhow::bail!(
@@ -78,13 +84,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
 
     let d = &args.detector_args;
     if let Some(path) = &d.from_weights {
-        let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
-        let w = roadtrack_cnn::centernet::CenterNetWeights::from_json(&text)
-            .with_context(|| format!("reading {}", path.display()))?;
-        roadtrack_cnn::centernet::write_onnx(&args.output, &w)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-        ui.info(format!("wrote {}", args.output.display()));
-        return Ok(());
+        return convert_weights(path, &args.output, ui);
     }
     let mut config = TrainConfig {
         seed: args.seed,

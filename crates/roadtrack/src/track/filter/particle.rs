@@ -263,17 +263,9 @@ impl ParticleFilterTracker {
         self.objects.retain(|o| !ids.contains(&o.id));
     }
 
-    /// Advances by one frame with this frame's detections (may be empty); returns every
-    /// tracked object, sorted by id.
-    ///
-    /// # Errors
-    /// When a likelihood fails.
-    pub fn step(&mut self, frame: &Frame, detections: &[Detection]) -> Result<Vec<TrackPoint>> {
-        let image = &frame.image;
-        let rho = self.config.particles_per_object;
-
-        // Predict each object with its own stream (parallel, thread-count independent).
-        let t0 = Instant::now();
+    /// Moves every object's particles one frame by the motion model, each object with its
+    /// own random stream (parallel, thread-count independent).
+    fn predict_objects(&mut self) {
         let motion = self.config.motion;
         self.objects.par_iter_mut().for_each(|o| {
             let p = &mut o.particles;
@@ -283,6 +275,19 @@ impl ParticleFilterTracker {
                 [p.x[i], p.y[i], p.vx[i], p.vy[i]] = s;
             }
         });
+    }
+
+    /// Advances by one frame with this frame's detections (may be empty); returns every
+    /// tracked object, sorted by id.
+    ///
+    /// # Errors
+    /// When a likelihood fails.
+    pub fn step(&mut self, frame: &Frame, detections: &[Detection]) -> Result<Vec<TrackPoint>> {
+        let image = &frame.image;
+        let rho = self.config.particles_per_object;
+
+        let t0 = Instant::now();
+        self.predict_objects();
         self.times.predict += t0.elapsed();
 
         // Likelihood: one batch for a shared likelihood, one per object otherwise.
@@ -362,15 +367,7 @@ impl ParticleFilterTracker {
         let image = &frame.image;
         let rho = self.config.particles_per_object;
         let t0 = Instant::now();
-        let motion = self.config.motion;
-        self.objects.par_iter_mut().for_each(|o| {
-            let p = &mut o.particles;
-            for i in 0..p.len() {
-                let mut s = [p.x[i], p.y[i], p.vx[i], p.vy[i]];
-                motion.propagate_one(&mut s, 1.0, &mut o.rng);
-                [p.x[i], p.y[i], p.vx[i], p.vy[i]] = s;
-            }
-        });
+        self.predict_objects();
         self.times.predict += t0.elapsed();
 
         let t0 = Instant::now();

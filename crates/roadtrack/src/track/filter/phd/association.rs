@@ -251,18 +251,7 @@ impl LabelledPhd {
         } = self.exclusive(z, pd, kappa, image_h);
         let p = &mut self.particles;
         let n = p.len();
-        let a = |i: usize| image_h.map_or(1.0, |h| h.get(i).copied().unwrap_or(0.0));
-        let (x, y) = (&p.x, &p.y);
-        let h: Vec<f64> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let best = z
-                    .iter()
-                    .map(|zj| zj.kernel(x[i], y[i]))
-                    .fold(0.0f64, f64::max);
-                best * a(i)
-            })
-            .collect();
+        let h = super::detections::label_rule_scores(&p.x, &p.y, z, image_h);
         let nl = slot.len();
         // Per label: the factor of w̃_i is (1/W̃)·[p_0·r_miss + Σ_j p_j·g_ij / L_j], with
         // p_j / L_j = p_j·W̃ / C_ℓ,j.

@@ -132,17 +132,7 @@ impl LabelledPhd {
         let a = |i: usize| image_h.map_or(1.0, |h| h.get(i).copied().unwrap_or(0.0));
         let (x, y) = (&p.x, &p.y);
         let g = |i: usize, j: usize| pd * z[j].density(x[i], y[i]) * a(i);
-        // h for the label rules, per particle (parallel, independent).
-        let h: Vec<f64> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let best = z
-                    .iter()
-                    .map(|zj| zj.kernel(x[i], y[i]))
-                    .fold(0.0f64, f64::max);
-                best * a(i)
-            })
-            .collect();
+        let h = label_rule_scores(x, y, z, image_h);
         // C_j summed in particle order for each j (parallel over j: deterministic).
         let w = &p.w;
         let c: Vec<f64> = (0..m)
@@ -202,4 +192,26 @@ impl LabelledPhd {
             self.bernoulli_labels(&bernoulli);
         }
     }
+}
+
+/// `h_i = a_i · max_j exp(−d_ij²/2)` per particle (`d`: Mahalanobis distance to detection
+/// `j`, `a_i` the image likelihood when given, else 1), stored for the label rules by both
+/// detection updates. Parallel over particles, each independent: deterministic.
+pub(super) fn label_rule_scores(
+    x: &[f64],
+    y: &[f64],
+    z: &[super::BoxMeasurement],
+    image_h: Option<&[f64]>,
+) -> Vec<f64> {
+    let a = |i: usize| image_h.map_or(1.0, |h| h.get(i).copied().unwrap_or(0.0));
+    (0..x.len())
+        .into_par_iter()
+        .map(|i| {
+            let best = z
+                .iter()
+                .map(|zj| zj.kernel(x[i], y[i]))
+                .fold(0.0f64, f64::max);
+            best * a(i)
+        })
+        .collect()
 }
