@@ -53,8 +53,11 @@ pub(crate) fn node(
     }
 }
 
-fn value_info(name: &str, dims: &[Option<i64>]) -> pb::ValueInfoProto {
+/// A float tensor's value info: `dims` fixed where `Some`, symbolic otherwise, named in turn
+/// from `params` ("N" once they run out).
+pub(crate) fn value_info(name: &str, dims: &[Option<i64>], params: &[&str]) -> pb::ValueInfoProto {
     use pb::tensor_shape_proto::{Dimension, dimension::Value};
+    let mut symbolic = params.iter();
     pb::ValueInfoProto {
         name: name.into(),
         r#type: Some(pb::TypeProto {
@@ -66,7 +69,9 @@ fn value_info(name: &str, dims: &[Option<i64>]) -> pb::ValueInfoProto {
                         .map(|d| Dimension {
                             value: Some(match d {
                                 Some(n) => Value::DimValue(*n),
-                                None => Value::DimParam("N".into()),
+                                None => {
+                                    Value::DimParam(symbolic.next().copied().unwrap_or("N").into())
+                                }
                             }),
                             ..Default::default()
                         })
@@ -149,8 +154,9 @@ pub fn onnx_model(
             input: vec![value_info(
                 "input",
                 &[None, Some(3), Some(s.height as i64), Some(s.width as i64)],
+                &[],
             )],
-            output: vec![value_info("probabilities", &[None, Some(2)])],
+            output: vec![value_info("probabilities", &[None, Some(2)], &[])],
             ..Default::default()
         },
         meta,

@@ -27,7 +27,7 @@ use std::path::Path;
 use prost::Message as _;
 use tract_onnx::pb;
 
-use super::export::{ints, node, opset13_model};
+use super::export::{ints, node, opset13_model, value_info};
 use super::onnx::float_tensor;
 use roadtrack::error::Result;
 
@@ -43,35 +43,6 @@ pub fn is_centernet_file(path: &Path) -> bool {
         .ok()
         .and_then(|b| <pb::ModelProto as prost::Message>::decode(b.as_slice()).ok())
         .is_some_and(|m| super::onnx::metadata(&m, "roadtrack.kind") == Some(KIND))
-}
-
-fn value_info(name: &str, dims: &[Option<i64>], params: &[&str]) -> pb::ValueInfoProto {
-    use pb::tensor_shape_proto::{Dimension, dimension::Value};
-    let mut symbolic = params.iter();
-    pb::ValueInfoProto {
-        name: name.into(),
-        r#type: Some(pb::TypeProto {
-            value: Some(pb::type_proto::Value::TensorType(pb::type_proto::Tensor {
-                elem_type: pb::tensor_proto::DataType::Float as i32,
-                shape: Some(pb::TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|d| Dimension {
-                            value: Some(match d {
-                                Some(n) => Value::DimValue(*n),
-                                None => {
-                                    Value::DimParam(symbolic.next().copied().unwrap_or("N").into())
-                                }
-                            }),
-                            ..Default::default()
-                        })
-                        .collect(),
-                }),
-            })),
-            ..Default::default()
-        }),
-        ..Default::default()
-    }
 }
 
 /// The ONNX model (opset 13) of `net`: input `input` `N × 3 × H × W` (symbolic), outputs
