@@ -80,6 +80,11 @@ pub struct OnnxArgs {
     /// motorcycle, bus, truck kept].
     #[arg(long, value_name = "MAP")]
     pub classes: Option<String>,
+    /// --detector cnn: also run the network on the frame shrunk K times, for objects too
+    /// large for it at full size (cars near an oblique camera); 1 = full size only
+    /// [default: 2].
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub pyramid: Option<u32>,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -114,6 +119,7 @@ impl OnnxArgs {
             ("--resize", self.resize.is_some()),
             ("--detr-scores", self.detr_scores.is_some()),
             ("--classes", self.classes.is_some()),
+            ("--pyramid", self.pyramid.is_some()),
         ]
     }
 
@@ -122,7 +128,7 @@ impl OnnxArgs {
     pub fn given_not_cnn(&self) -> Vec<(&'static str, bool)> {
         self.given()
             .into_iter()
-            .filter(|(f, _)| !matches!(*f, "--min-score" | "--iou-threshold"))
+            .filter(|(f, _)| !matches!(*f, "--min-score" | "--iou-threshold" | "--pyramid"))
             .collect()
     }
 
@@ -149,6 +155,9 @@ impl OnnxArgs {
         }
         if let Some(s) = self.iou_threshold {
             config.iou_threshold = s;
+        }
+        if let Some(k) = self.pyramid {
+            config.pyramid = k;
         }
         let detector = CenterNetDetector::load(&path, &config)?;
         Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
@@ -180,6 +189,10 @@ impl OnnxArgs {
             Channels, DetrScores, Layout, OnnxDetector, OnnxDetectorConfig, Resize,
         };
         let model = self.model()?;
+        crate::flags::reject_given(
+            &[("--pyramid", self.pyramid.is_some())],
+            "only with --detector cnn, not --detector onnx",
+        )?;
         let mut config: OnnxDetectorConfig = match self.onnx_config.as_deref() {
             Some(p) => roadtrack::config::load_toml(p).context("reading --onnx-config")?,
             None => OnnxDetectorConfig::default(),

@@ -51,6 +51,14 @@ pub struct DataConfig {
     /// Objects less visible than this are neither positives nor negatives (their
     /// surroundings are left out of the loss).
     pub min_visibility: f64,
+    /// Crop scale, frame px per crop px, of the ordinary crops (uniform in the range).
+    pub scale_range: (f64, f64),
+    /// Share of crops zoomed out further, log-uniform in `(scale_range.1, zoom_out_max)`
+    /// and area-sampled, so that vehicles near an oblique camera (100–300 px) are seen whole
+    /// and the detector's coarse pyramid level (`roadtrack_cnn::centernet`) finds them.
+    pub zoom_out_share: f64,
+    /// Largest zoom-out scale.
+    pub zoom_out_max: f64,
 }
 
 impl Default for DataConfig {
@@ -61,6 +69,12 @@ impl Default for DataConfig {
             frames_per_episode: 6,
             crop: 128,
             min_visibility: 0.25,
+            scale_range: (0.7, 1.4),
+            // Choice: a third of the crops at 1.4–3.2 frame px per crop px. With only
+            // 0.7–1.4 an oblique car 150 px long never fits a 128 px crop whole, and the
+            // network learned to put small boxes on its parts (docs/EXPERIMENTS.md).
+            zoom_out_share: 1.0 / 3.0,
+            zoom_out_max: 3.2,
         }
     }
 }
@@ -239,7 +253,15 @@ pub fn make_sample(
         f64::from(frame.image.width()),
         f64::from(frame.image.height()),
     );
-    let sc = scale(rng, 0.7, 1.4);
+    let sc = if data.zoom_out_share > 0.0 && rng.random_bool(data.zoom_out_share.min(1.0)) {
+        scale(rng, data.scale_range.1.ln(), data.zoom_out_max.ln()).exp()
+    } else {
+        scale(rng, data.scale_range.0, data.scale_range.1)
+    };
+    // Choice: zoomed-out crops average a k × k grid of bilinear samples over each crop
+    // pixel's footprint (k = ⌈scale⌉ − 1, so 1 up to 2 px per crop px), as the detector's
+    // area-averaged pyramid level does; plain bilinear sampling would alias.
+    let taps = (sc.ceil() as usize).saturating_sub(1).max(1);
     let span = s as f64 * sc;
     let usable: Vec<&Object> = frame
         .objects
@@ -265,26 +287,40 @@ pub fn make_sample(
     let gain: [f32; 3] = std::array::from_fn(|c| prep.input_scale / prep.std[c]);
     let off: [f32; 3] = std::array::from_fn(|c| -prep.mean[c] / prep.std[c]);
     let (iw, ih) = (frame.image.width() as i64, frame.image.height() as i64);
-    for v in 0..s {
-        let fy = y0 + (v as f64 + 0.5) * sc - 0.5;
+    let bilinear = |fx: f64, fy: f64| -> [f64; 3] {
         let (y_a, ty) = (fy.floor(), fy - fy.floor());
         let ya = (y_a as i64).clamp(0, ih - 1) as u32;
         let yb = (y_a as i64 + 1).clamp(0, ih - 1) as u32;
+        let (x_a, tx) = (fx.floor(), fx - fx.floor());
+        let xa = (x_a as i64).clamp(0, iw - 1) as u32;
+        let xb = (x_a as i64 + 1).clamp(0, iw - 1) as u32;
+        let p00 = frame.image.get_pixel(xa, ya).0;
+        let p01 = frame.image.get_pixel(xb, ya).0;
+        let p10 = frame.image.get_pixel(xa, yb).0;
+        let p11 = frame.image.get_pixel(xb, yb).0;
+        std::array::from_fn(|c| {
+            let top = f64::from(p00[c]) * (1.0 - tx) + f64::from(p01[c]) * tx;
+            let bot = f64::from(p10[c]) * (1.0 - tx) + f64::from(p11[c]) * tx;
+            top * (1.0 - ty) + bot * ty
+        })
+    };
+    let inv_taps = 1.0 / (taps * taps) as f64;
+    for v in 0..s {
         for u in 0..s {
             let uu = if flip { s - 1 - u } else { u };
-            let fx = x0 + (uu as f64 + 0.5) * sc - 0.5;
-            let (x_a, tx) = (fx.floor(), fx - fx.floor());
-            let xa = (x_a as i64).clamp(0, iw - 1) as u32;
-            let xb = (x_a as i64 + 1).clamp(0, iw - 1) as u32;
-            let p00 = frame.image.get_pixel(xa, ya).0;
-            let p01 = frame.image.get_pixel(xb, ya).0;
-            let p10 = frame.image.get_pixel(xa, yb).0;
-            let p11 = frame.image.get_pixel(xb, yb).0;
+            let mut acc = [0.0f64; 3];
+            for ty in 0..taps {
+                let fy = y0 + (v as f64 + (ty as f64 + 0.5) / taps as f64) * sc - 0.5;
+                for tx in 0..taps {
+                    let fx = x0 + (uu as f64 + (tx as f64 + 0.5) / taps as f64) * sc - 0.5;
+                    let p = bilinear(fx, fy);
+                    for c in 0..3 {
+                        acc[c] += p[c];
+                    }
+                }
+            }
             for c in 0..3 {
-                let top = f64::from(p00[c]) * (1.0 - tx) + f64::from(p01[c]) * tx;
-                let bot = f64::from(p10[c]) * (1.0 - tx) + f64::from(p11[c]) * tx;
-                let val = (top * (1.0 - ty) + bot * ty) as f32;
-                input[c * s * s + v * s + u] = gain[c] * val + off[c];
+                input[c * s * s + v * s + u] = gain[c] * (acc[c] * inv_taps) as f32 + off[c];
             }
         }
     }

@@ -76,3 +76,87 @@ fn burn_still_computes_the_parity_fixture() -> Result<()> {
     assert_eq!(boxes, f.boxes);
     Ok(())
 }
+
+#[test]
+fn zoomed_out_crops_shrink_objects_by_the_drawn_scale() {
+    use crate::data::{Object, TrainFrame, make_sample};
+    use rand::SeedableRng;
+    // One 200 × 80 px car on a 640 × 480 frame (a car near an oblique camera): ordinary
+    // crops (0.7–1.4 frame px per crop px) see it at 143–286 crop px, larger than a crop;
+    // zoomed-out ones (1.4–3.2) at 62–143.
+    let frame = TrainFrame {
+        image: image::RgbImage::from_pixel(640, 480, image::Rgb([90, 90, 90])),
+        objects: vec![Object {
+            bbox: roadtrack::geometry::BBox::new(220.0, 200.0, 200.0, 80.0),
+            channel: 0,
+            visibility: 1.0,
+        }],
+    };
+    let prep = crate::train::training_preprocessing();
+    let widths = |share: f64| -> Vec<f64> {
+        let data = DataConfig {
+            zoom_out_share: share,
+            ..DataConfig::default()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
+        let mut out = Vec::new();
+        for _ in 0..200 {
+            let s = make_sample(&frame, &mut rng, &data, &prep);
+            let plane = (data.crop / 4) * (data.crop / 4);
+            if let Some(i) = (0..plane).find(|&i| s.reg_mask[i] > 0.0) {
+                out.push(4.0 * f64::from(s.reg[i]).exp());
+            }
+        }
+        out
+    };
+    let ordinary = widths(0.0);
+    let zoomed = widths(1.0);
+    assert!(ordinary.len() > 50 && zoomed.len() > 50);
+    let within = |v: &[f64], lo: f64, hi: f64| v.iter().all(|&w| w >= lo - 1e-3 && w <= hi + 1e-3);
+    assert!(within(&ordinary, 200.0 / 1.4, 200.0 / 0.7), "{ordinary:?}");
+    assert!(within(&zoomed, 200.0 / 3.2, 200.0 / 1.4), "{zoomed:?}");
+    // Zoomed-out crops are area-sampled: a uniform frame stays uniform.
+    let data = DataConfig {
+        zoom_out_share: 1.0,
+        ..DataConfig::default()
+    };
+    let s = make_sample(
+        &frame,
+        &mut rand_pcg::Pcg64Mcg::seed_from_u64(1),
+        &data,
+        &prep,
+    );
+    let v0 = s.input[0];
+    assert!(
+        s.input[..data.crop * data.crop]
+            .iter()
+            .all(|&v| (v - v0).abs() < 1e-5)
+    );
+}
+
+#[test]
+fn bad_crop_scales_are_refused_by_name() {
+    for (data, field) in [
+        (
+            DataConfig {
+                scale_range: (1.4, 0.7),
+                ..DataConfig::default()
+            },
+            "scale_range",
+        ),
+        (
+            DataConfig {
+                zoom_out_max: 1.0,
+                ..DataConfig::default()
+            },
+            "zoom_out",
+        ),
+    ] {
+        let cfg = TrainConfig {
+            data,
+            ..TrainConfig::default()
+        };
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains(field), "{field}: {err}");
+    }
+}

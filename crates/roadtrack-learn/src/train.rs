@@ -98,6 +98,25 @@ impl TrainConfig {
         if !(32..=4096).contains(&self.data.width) || !(32..=4096).contains(&self.data.height) {
             return bad("width/height", "must be 32–4096 px".into());
         }
+        let d = &self.data;
+        if !(d.scale_range.0 > 0.0 && d.scale_range.0 < d.scale_range.1) {
+            return bad(
+                "scale_range",
+                format!("must be 0 < min < max, got {:?}", d.scale_range),
+            );
+        }
+        if !(0.0..=1.0).contains(&d.zoom_out_share)
+            || (d.zoom_out_share > 0.0
+                && !(d.zoom_out_max > d.scale_range.1 && d.zoom_out_max <= 8.0))
+        {
+            return bad(
+                "zoom_out_share/zoom_out_max",
+                format!(
+                    "share must be in [0, 1] and max in (scale_range.1, 8], got {} and {}",
+                    d.zoom_out_share, d.zoom_out_max
+                ),
+            );
+        }
         if self.pool_frames == 0 || self.refresh_every == 0 || self.data.frames_per_episode == 0 {
             return bad(
                 "pool_frames/refresh_every/frames_per_episode",

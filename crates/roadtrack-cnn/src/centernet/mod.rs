@@ -19,7 +19,7 @@ mod tests;
 
 pub use detector::{
     CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, decode_peaks, default_model_path,
-    score_map_of,
+    merge_levels, score_map_of, shrink,
 };
 
 use std::path::Path;

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::detector::decode::Candidate;
+use image::RgbImage;
 use roadtrack::error::Error;
 use std::path::PathBuf;
 
@@ -175,4 +176,149 @@ fn tract_on_the_exported_onnx_equals_burn_on_the_parity_fixture() -> Result<()> 
     // The same bytes for the same weights.
     assert_eq!(onnx_bytes(&f.weights)?, onnx_bytes(&f.weights)?);
     Ok(())
+}
+
+fn cand(cx: f64, cy: f64, w: f64, h: f64, class: usize, score: f64) -> Candidate {
+    Candidate {
+        cx,
+        cy,
+        w,
+        h,
+        class,
+        score,
+    }
+}
+
+#[test]
+fn shrinking_averages_blocks_and_keeps_positions() {
+    // A naive reference: every output pixel is the rounded mean of its k × k block.
+    let img = RgbImage::from_fn(37, 22, |x, y| {
+        image::Rgb([(x * 7 + y * 3) as u8, (x * y) as u8, (255 - x - y) as u8])
+    });
+    for k in [2u32, 3] {
+        let s = shrink(&img, k);
+        assert_eq!(s.dimensions(), (37 / k, 22 / k));
+        for (x, y, p) in s.enumerate_pixels() {
+            for c in 0..3 {
+                let mut sum = 0.0;
+                for dy in 0..k {
+                    for dx in 0..k {
+                        sum += f64::from(img.get_pixel(x * k + dx, y * k + dy).0[c]);
+                    }
+                }
+                let want = (sum / f64::from(k * k)).round();
+                assert!((f64::from(p.0[c]) - want).abs() <= 0.5, "k {k} ({x}, {y})");
+            }
+        }
+    }
+    // A white 8 × 8 square at frame px [10, 18) lands on [5, 9) at half size.
+    let sq = RgbImage::from_fn(32, 32, |x, y| {
+        let v = if (10..18).contains(&x) && (10..18).contains(&y) {
+            255
+        } else {
+            0
+        };
+        image::Rgb([v; 3])
+    });
+    let s = shrink(&sq, 2);
+    for (x, y, p) in s.enumerate_pixels() {
+        let inside = (5..9).contains(&x) && (5..9).contains(&y);
+        assert_eq!(p.0[0] == 255, inside, "({x}, {y})");
+    }
+}
+
+#[test]
+fn pyramid_levels_keep_their_sizes_and_drop_parts_of_large_vehicles() {
+    let cfg = CenterNetConfig::default();
+    let (car, ped) = (0, 3);
+    let fine = vec![
+        cand(100.0, 100.0, 20.0, 10.0, car, 0.6), // part of the large car below: dropped
+        cand(104.0, 98.0, 6.0, 18.0, ped, 0.5),   // a pedestrian in front of it: kept
+        cand(300.0, 200.0, 30.0, 15.0, car, 0.7), // an ordinary car: kept
+        cand(400.0, 300.0, 120.0, 60.0, car, 0.4), // too large for the fine level: dropped
+    ];
+    let coarse = vec![
+        cand(50.0, 50.0, 60.0, 25.0, car, 0.8), // 120 × 50 frame px at (100, 100): kept
+        cand(150.0, 20.0, 10.0, 5.0, car, 0.9), // 20 × 10 frame px: left to the fine level
+        cand(200.0, 150.0, 30.0, 12.0, ped, 0.5), // a large pedestrian box: kept
+    ];
+    let got = merge_levels(fine, coarse, 2, &cfg);
+    let keys: Vec<(f64, f64, f64, usize)> =
+        got.iter().map(|c| (c.cx, c.cy, c.w, c.class)).collect();
+    assert_eq!(
+        keys,
+        vec![
+            (104.0, 98.0, 6.0, ped),
+            (300.0, 200.0, 30.0, car),
+            (100.0, 100.0, 120.0, car),
+            (400.0, 300.0, 60.0, ped),
+        ]
+    );
+    // Without the part rule the car part stays.
+    let loose = CenterNetConfig {
+        part_fraction: 1.01,
+        ..cfg.clone()
+    };
+    assert_eq!(
+        merge_levels(
+            vec![cand(100.0, 100.0, 20.0, 10.0, car, 0.6)],
+            vec![cand(50.0, 50.0, 60.0, 25.0, car, 0.8)],
+            2,
+            &loose
+        )
+        .len(),
+        2
+    );
+}
+
+#[test]
+fn bad_pyramid_settings_are_refused_by_name() {
+    use roadtrack::config::Validate;
+    for (cfg, field) in [
+        (
+            CenterNetConfig {
+                pyramid: 0,
+                ..Default::default()
+            },
+            "pyramid",
+        ),
+        (
+            CenterNetConfig {
+                pyramid: 9,
+                ..Default::default()
+            },
+            "pyramid",
+        ),
+        (
+            CenterNetConfig {
+                fine_max_side: 0.0,
+                ..Default::default()
+            },
+            "fine_max_side",
+        ),
+        (
+            CenterNetConfig {
+                coarse_min_side: f64::NAN,
+                ..Default::default()
+            },
+            "coarse_min_side",
+        ),
+        (
+            CenterNetConfig {
+                part_fraction: 2.0,
+                ..Default::default()
+            },
+            "part_fraction",
+        ),
+        (
+            CenterNetConfig {
+                min_side: -1.0,
+                ..Default::default()
+            },
+            "min_side",
+        ),
+    ] {
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains(field), "{field}: {err}");
+    }
 }
