@@ -14,8 +14,8 @@
 set -euo pipefail
 
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
-DETECTOR_STEPS="${DETECTOR_STEPS:-3000}"
-DETECTOR_STOP_AFTER="${DETECTOR_STOP_AFTER:-1300}"
+DETECTOR_STEPS="${DETECTOR_STEPS:-8000}"
+DETECTOR_STOP_AFTER="${DETECTOR_STOP_AFTER:-8000}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"

@@ -8,7 +8,8 @@ the peer.
 
     python scripts/video_tracking_table.py --roadtrack $CARGO_TARGET_DIR/release/roadtrack \\
         [--frames 300] [--seeds 1,2,3] [--scenes road,intersection,crossing] \\
-        [--views aerial,oblique] [--detectors background,cnn] [--work /tmp/vidtrack]
+        [--views aerial,oblique] [--detectors background,cnn] [--methods relaxation,mrf,pf,phd] \\
+        [--cnn-args '--model F.onnx --pyramid 1'] [--work /tmp/vidtrack]
 
 Run from the repository root (configs/ and models/detector.onnx are read from there).
 Not part of the test suite; needs `pip install opencv-python-headless numpy norfair`.
@@ -56,8 +57,12 @@ def main():
     ap.add_argument("--scenes", default="road,intersection,crossing")
     ap.add_argument("--views", default="aerial,oblique")
     ap.add_argument("--detectors", default="background,cnn")
+    ap.add_argument("--methods", default=",".join(m for m, _ in METHODS))
+    ap.add_argument("--cnn-args", default="",
+                    help="extra flags for --detector cnn, e.g. '--model F.onnx --pyramid 1'")
     ap.add_argument("--work", default="/tmp/vidtrack")
     a = ap.parse_args()
+    methods = [(m, e) for m, e in METHODS if m in a.methods.split(",")]
     rt = a.roadtrack
     seeds = [int(s) for s in a.seeds.split(",")]
     os.makedirs(a.work, exist_ok=True)
@@ -77,9 +82,10 @@ def main():
                 mog2_norfair.main(seq, t)
                 rows.append(("MOG2 + norfair (peer)", evaluate(rt, seq, t)))
                 for det in a.detectors.split(","):
-                    for method, extra in METHODS:
+                    for method, extra in methods:
+                        det_extra = a.cnn_args.split() if det == "cnn" else []
                         run([rt, "-q", "track", seq, "--method", method, "--detector", det,
-                             *extra, "--seed", "0", "-o", t])
+                             *det_extra, *extra, "--seed", "0", "-o", t])
                         rows.append((f"{method} + {det}", evaluate(rt, seq, t)))
                 for name, m in rows:
                     results[(sv, name)].append(m)

@@ -53,10 +53,10 @@ pub struct OnnxArgs {
     /// --detector onnx: output layout [default: auto].
     #[arg(long, value_enum, value_name = "L")]
     pub layout: Option<LayoutArg>,
-    /// --detector onnx: lowest score kept [default: 0.25].
+    /// --detector onnx|cnn: lowest score kept [default: 0.25; --detector cnn 0.4].
     #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
     pub min_score: Option<f64>,
-    /// --detector onnx: class-wise NMS IoU threshold [default: 0.45].
+    /// --detector onnx|cnn: class-wise NMS IoU threshold [default: 0.45].
     #[arg(long, value_name = "IOU", value_parser = crate::flags::probability)]
     pub iou_threshold: Option<f64>,
     /// --detector onnx: model input HxW, e.g. 640x640 [default: the model's, else 640x640].
