@@ -85,6 +85,9 @@ pub struct OnnxArgs {
     /// [default: 2].
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=8))]
     pub pyramid: Option<u32>,
+    /// --detector cnn: lowest score kept on the shrunk pyramid level [default: 0.3].
+    #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
+    pub coarse_min_score: Option<f64>,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -120,6 +123,7 @@ impl OnnxArgs {
             ("--detr-scores", self.detr_scores.is_some()),
             ("--classes", self.classes.is_some()),
             ("--pyramid", self.pyramid.is_some()),
+            ("--coarse-min-score", self.coarse_min_score.is_some()),
         ]
     }
 
@@ -128,7 +132,12 @@ impl OnnxArgs {
     pub fn given_not_cnn(&self) -> Vec<(&'static str, bool)> {
         self.given()
             .into_iter()
-            .filter(|(f, _)| !matches!(*f, "--min-score" | "--iou-threshold" | "--pyramid"))
+            .filter(|(f, _)| {
+                !matches!(
+                    *f,
+                    "--min-score" | "--iou-threshold" | "--pyramid" | "--coarse-min-score"
+                )
+            })
             .collect()
     }
 
@@ -158,6 +167,9 @@ impl OnnxArgs {
         }
         if let Some(k) = self.pyramid {
             config.pyramid = k;
+        }
+        if let Some(s) = self.coarse_min_score {
+            config.coarse_min_score = s;
         }
         let detector = CenterNetDetector::load(&path, &config)?;
         Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
@@ -190,7 +202,10 @@ impl OnnxArgs {
         };
         let model = self.model()?;
         crate::flags::reject_given(
-            &[("--pyramid", self.pyramid.is_some())],
+            &[
+                ("--pyramid", self.pyramid.is_some()),
+                ("--coarse-min-score", self.coarse_min_score.is_some()),
+            ],
             "only with --detector cnn, not --detector onnx",
         )?;
         let mut config: OnnxDetectorConfig = match self.onnx_config.as_deref() {

@@ -53,6 +53,27 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         .output()
         .expect("run");
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // The pyramid flags are the learned detector's: usage errors elsewhere, and out of
+    // range a usage error naming the flag.
+    for args in [
+        &["--detector", "onnx", "--model", "m.onnx", "--pyramid", "1"][..],
+        &["--detector", "background", "--coarse-min-score", "0.3"][..],
+        &["--detector", "cnn", "--pyramid", "0"][..],
+    ] {
+        let o = bin()
+            .arg("detect")
+            .arg(fixture("tiny_sequence"))
+            .args(args)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let flag = if args.contains(&"--pyramid") {
+            "--pyramid"
+        } else {
+            "--coarse-min-score"
+        };
+        assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
+    }
 }
 
 #[test]

@@ -317,6 +317,13 @@ fn bad_pyramid_settings_are_refused_by_name() {
             },
             "min_side",
         ),
+        (
+            CenterNetConfig {
+                coarse_min_score: 1.5,
+                ..Default::default()
+            },
+            "coarse_min_score",
+        ),
     ] {
         let err = cfg.validate().unwrap_err().to_string();
         assert!(err.contains(field), "{field}: {err}");
