@@ -67,15 +67,15 @@ impl Default for CenterNetConfig {
             iou_threshold: 0.45,
             cross_class_iou: 0.7,
             max_detections: 300,
-            // Choice: one coarse level at half size, as the trainer's zoomed-out crops
-            // (1.4–3.2 frame px per crop px) see objects; the size ranges overlap by a
-            // factor 2 and NMS settles the overlap (SNIP's scale-specific ranges, Singh
-            // & Davis 2018). Measured in docs/EXPERIMENTS.md "Learned detector".
             // Choice: 3 px. On the simulator's oblique scenes (seed 0) every box with a
             // longer side under 2 px was false (4 190 and 4 073 of them on the intersection
             // and the crossing, against no true one), 2–3 px nearly so; aerial pedestrians of
             // that size are not found at IoU 0.5 anyway (docs/EXPERIMENTS.md).
             min_side: 3.0,
+            // Choice: one coarse level at half size, as the trainer's zoomed-out crops
+            // (1.4–3.2 frame px per crop px) see objects; the size ranges overlap by a
+            // factor 2 and NMS settles the overlap (SNIP's scale-specific ranges, Singh
+            // & Davis 2018). Measured in docs/EXPERIMENTS.md "Learned detector".
             pyramid: 2,
             // Choice: 0.3. The shrunk level's peaks on large oblique vehicles are weaker;
             // against 0.4 (seed 0 scenes) oblique vehicle recall / precision rose on the
@@ -487,26 +487,12 @@ pub fn merge_levels(
         .filter(|f| {
             !vehicle(f)
                 || !coarse.iter().any(|c| {
-                    vehicle(c)
-                        && c.w * c.h > f.w * f.h
-                        && inside_fraction(f, c) >= cfg.part_fraction
+                    vehicle(c) && c.w * c.h > f.w * f.h && f.inside_fraction(c) >= cfg.part_fraction
                 })
         })
         .collect();
     out.extend(coarse);
     out
-}
-
-/// The fraction of `a`'s area inside `b`.
-fn inside_fraction(a: &Candidate, b: &Candidate) -> f64 {
-    let ix = (a.cx + a.w / 2.0).min(b.cx + b.w / 2.0) - (a.cx - a.w / 2.0).max(b.cx - b.w / 2.0);
-    let iy = (a.cy + a.h / 2.0).min(b.cy + b.h / 2.0) - (a.cy - a.h / 2.0).max(b.cy - b.h / 2.0);
-    let area = a.w * a.h;
-    if ix <= 0.0 || iy <= 0.0 || area <= 0.0 {
-        0.0
-    } else {
-        ix * iy / area
-    }
 }
 
 /// The maximum of `channels` of `maps` per cell as a [`ScoreMap`].

@@ -90,13 +90,28 @@ impl Candidate {
         ]
     }
 
-    /// Intersection over union of two boxes.
-    pub fn iou(&self, other: &Candidate) -> f64 {
+    /// Area of the overlap of two boxes.
+    fn intersection(&self, other: &Candidate) -> f64 {
         let [a0, a1, a2, a3] = self.corners();
         let [b0, b1, b2, b3] = other.corners();
         let iw = (a2.min(b2) - a0.max(b0)).max(0.0);
         let ih = (a3.min(b3) - a1.max(b1)).max(0.0);
-        let inter = iw * ih;
+        iw * ih
+    }
+
+    /// The fraction of this box's area inside `other` (0 for an empty box).
+    pub fn inside_fraction(&self, other: &Candidate) -> f64 {
+        let area = self.w * self.h;
+        if area > 0.0 {
+            self.intersection(other) / area
+        } else {
+            0.0
+        }
+    }
+
+    /// Intersection over union of two boxes.
+    pub fn iou(&self, other: &Candidate) -> f64 {
+        let inter = self.intersection(other);
         let union = self.w * self.h + other.w * other.h - inter;
         if union > 0.0 { inter / union } else { 0.0 }
     }
