@@ -141,8 +141,12 @@ pub fn detect_with(
 ) -> Result<StageResult> {
     let start = Instant::now();
     let mut n = 0usize;
-    for f in frames {
-        n += det.detect(f)?.detections.len();
+    // In batches, as `detect` and `track` run it.
+    for chunk in frames.chunks(det.batch_len().max(1)) {
+        n += roadtrack::detect::detect_checked(det, chunk)?
+            .iter()
+            .map(|f| f.detections.len())
+            .sum::<usize>();
     }
     std::hint::black_box(n);
     Ok(StageResult::new(

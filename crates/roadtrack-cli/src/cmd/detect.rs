@@ -146,28 +146,39 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     let mut masks = args.masks.as_deref().map(AtomicDir::create).transpose()?;
     let mut all = Vec::new();
     let mut n_frames = 0u64;
-    for frame in frames {
-        let frame = frame?;
-        let found = detector.detect(&frame)?;
-        if let Some(dir) = &overlay {
-            let mut img = frame.image.clone();
-            for d in &found.detections {
-                if let Some(b) = d.bbox() {
-                    roadtrack_viz::overlay::draw_box(
-                        &mut img,
-                        &b,
-                        roadtrack_viz::overlay::id_colour(d.id),
-                    );
+    let batch_len = detector.batch_len().max(1);
+    let mut frames = frames.into_iter();
+    let mut batch = Vec::with_capacity(batch_len);
+    loop {
+        batch.clear();
+        for frame in frames.by_ref().take(batch_len) {
+            batch.push(frame?);
+        }
+        if batch.is_empty() {
+            break;
+        }
+        let results = roadtrack::detect::detect_checked(detector.as_mut(), &batch)?;
+        for (frame, found) in batch.iter().zip(results) {
+            if let Some(dir) = &overlay {
+                let mut img = frame.image.clone();
+                for d in &found.detections {
+                    if let Some(b) = d.bbox() {
+                        roadtrack_viz::overlay::draw_box(
+                            &mut img,
+                            &b,
+                            roadtrack_viz::overlay::id_colour(d.id),
+                        );
+                    }
                 }
+                save_png(dir.temp_path(), frame.index, &img)?;
             }
-            save_png(dir.temp_path(), frame.index, &img)?;
+            if let (Some(dir), Some(mask)) = (&masks, &found.foreground) {
+                save_png(dir.temp_path(), frame.index, mask)?;
+            }
+            all.extend(found.detections);
+            n_frames += 1;
+            bar.inc(1);
         }
-        if let (Some(dir), Some(mask)) = (&masks, &found.foreground) {
-            save_png(dir.temp_path(), frame.index, mask)?;
-        }
-        all.extend(found.detections);
-        n_frames += 1;
-        bar.inc(1);
     }
     for dir in [overlay.take(), masks.take()].into_iter().flatten() {
         dir.commit()?;

@@ -572,8 +572,9 @@ pub fn decode_peaks(maps: &HeatMaps, min_score: f64) -> Vec<Candidate> {
     out
 }
 
-impl Detector for CenterNetDetector {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+impl CenterNetDetector {
+    /// [`Detector::detect`] on `&self`: the result depends on `frame` alone.
+    fn frame_detections(&self, frame: &Frame) -> Result<FrameDetections> {
         let boxes = self.detect_boxes(&frame.image)?;
         let detections = boxes
             .into_iter()
@@ -593,6 +594,22 @@ impl Detector for CenterNetDetector {
             detections,
             foreground: None,
         })
+    }
+}
+
+impl Detector for CenterNetDetector {
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+        self.frame_detections(frame)
+    }
+
+    fn batch_len(&self) -> usize {
+        // Choice: one frame per thread at a time; a frame is too small a job to split.
+        rayon::current_num_threads().max(1)
+    }
+
+    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
+        let this = &*self;
+        roadtrack::detect::detect_stateless_batch(frames, |f| this.frame_detections(f))
     }
 }
 

@@ -329,3 +329,35 @@ fn bad_pyramid_settings_are_refused_by_name() {
         assert!(err.contains(field), "{field}: {err}");
     }
 }
+
+#[test]
+fn a_batch_of_frames_gives_what_one_frame_at_a_time_gives_at_any_thread_count() -> Result<()> {
+    use roadtrack::detect::Detector;
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    let cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames: 5,
+        ..SimConfig::default()
+    };
+    let run = roadtrack_sim::simulate_in_memory(&cfg, 23)?;
+    let mut det = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?;
+    let one_by_one: Vec<_> = run
+        .frames
+        .iter()
+        .map(|f| det.detect(f))
+        .collect::<Result<_>>()?;
+    assert!(one_by_one.iter().any(|f| !f.detections.is_empty()));
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| Error::Invalid(e.to_string()))?;
+        let batched = pool.install(|| -> Result<_> {
+            assert_eq!(det.batch_len(), threads);
+            det.detect_batch(&run.frames)
+        })?;
+        assert_eq!(batched, one_by_one, "{threads} threads");
+    }
+    Ok(())
+}

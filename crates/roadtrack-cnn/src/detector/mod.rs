@@ -410,8 +410,9 @@ pub fn letterbox(
     (out, placement)
 }
 
-impl Detector for OnnxDetector {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+impl OnnxDetector {
+    /// [`Detector::detect`] on `&self`: the result depends on `frame` alone.
+    fn frame_detections(&self, frame: &Frame) -> Result<FrameDetections> {
         let boxes = self.detect_boxes(&frame.image)?;
         let detections = boxes
             .into_iter()
@@ -431,5 +432,21 @@ impl Detector for OnnxDetector {
             detections,
             foreground: None,
         })
+    }
+}
+
+impl Detector for OnnxDetector {
+    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+        self.frame_detections(frame)
+    }
+
+    fn batch_len(&self) -> usize {
+        // Choice: one frame per thread at a time; a frame is too small a job to split.
+        rayon::current_num_threads().max(1)
+    }
+
+    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
+        let this = &*self;
+        roadtrack::detect::detect_stateless_batch(frames, |f| this.frame_detections(f))
     }
 }

@@ -43,6 +43,58 @@ pub trait Detector {
     /// # Errors
     /// A frame the detector cannot process (e.g. of another size than the first).
     fn detect(&mut self, frame: &Frame) -> Result<FrameDetections>;
+
+    /// How many consecutive frames [`Detector::detect_batch`] should be given at once: more
+    /// than one for a detector that looks at each frame alone and spreads a batch over the
+    /// threads. The results never depend on it.
+    fn batch_len(&self) -> usize {
+        1
+    }
+
+    /// Finds the objects of consecutive `frames`, one result per frame in order. The default
+    /// calls [`Detector::detect`] on each.
+    ///
+    /// # Errors
+    /// As [`Detector::detect`], for the first frame that fails.
+    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
+        frames.iter().map(|f| self.detect(f)).collect()
+    }
+}
+
+/// `detector`'s [`Detector::detect_batch`] on `frames`, checked to give one result per frame.
+///
+/// # Errors
+/// The detector's; an internal error when the count of results is wrong.
+pub fn detect_checked(
+    detector: &mut (impl Detector + ?Sized),
+    frames: &[Frame],
+) -> Result<Vec<FrameDetections>> {
+    let found = detector.detect_batch(frames)?;
+    if found.len() != frames.len() {
+        return Err(crate::error::Error::Invalid(format!(
+            "internal error: the detector returned {} results for {} frames",
+            found.len(),
+            frames.len()
+        )));
+    }
+    Ok(found)
+}
+
+/// [`Detector::detect_batch`] for a detector whose result depends on each frame alone:
+/// `detect` runs on the frames in parallel (rayon), so the output is the same as one frame
+/// at a time, whatever the thread count.
+///
+/// # Errors
+/// The first failing frame's error, in frame order.
+pub fn detect_stateless_batch(
+    frames: &[Frame],
+    detect: impl Fn(&Frame) -> Result<FrameDetections> + Sync + Send,
+) -> Result<Vec<FrameDetections>> {
+    use rayon::prelude::*;
+    // Collected whole first, so the error reported is the first frame's, not the first
+    // thread's.
+    let all: Vec<Result<FrameDetections>> = frames.par_iter().map(detect).collect();
+    all.into_iter().collect()
 }
 
 impl<F: FnMut(&Frame) -> Result<FrameDetections>> Detector for F {

@@ -132,28 +132,34 @@ impl<'a> Pipeline<'a> {
         let mut summary = RunSummary::default();
         let mut ids = BTreeSet::new();
         let empty = FrameDetections::default();
-        for frame in frames {
-            let frame = frame?;
-            let found;
-            let detections = match self.detector.as_mut() {
-                Some(d) => {
-                    found = d.detect(&frame)?;
-                    &found
-                }
-                None => &empty,
-            };
-            let out = self.tracker.step(&frame, detections)?;
-            waiting.frames.push_back((
-                frame.index,
-                if waiting.keep_images {
-                    Some(frame)
-                } else {
-                    None
-                },
-            ));
-            self.through_stages(0, out, &mut waiting, &mut summary, &mut ids)?;
-            summary.frames += 1;
-            progress(summary.frames, total.unwrap_or(0));
+        let batch_len = self.detector.as_ref().map_or(1, |d| d.batch_len().max(1));
+        let mut frames = frames.into_iter();
+        let mut batch: Vec<Frame> = Vec::with_capacity(batch_len);
+        let mut found: Vec<FrameDetections> = Vec::new();
+        loop {
+            // Choice: a detector that takes several frames at once (the networks) gets them
+            // as one batch; the tracker still steps through them one at a time, in order.
+            batch.clear();
+            for frame in frames.by_ref().take(batch_len) {
+                batch.push(frame?);
+            }
+            if batch.is_empty() {
+                break;
+            }
+            found.clear();
+            if let Some(d) = self.detector.as_mut() {
+                found = crate::detect::detect_checked(d.as_mut(), &batch)?;
+            }
+            for (i, frame) in batch.drain(..).enumerate() {
+                self.step_frame(
+                    frame,
+                    found.get(i).unwrap_or(&empty),
+                    &mut waiting,
+                    &mut summary,
+                    &mut ids,
+                )?;
+                progress(summary.frames, total.unwrap_or(0));
+            }
         }
         let out = self.tracker.finish()?;
         self.through_stages(0, out, &mut waiting, &mut summary, &mut ids)?;
@@ -171,6 +177,29 @@ impl<'a> Pipeline<'a> {
         }
         summary.tracks = ids.len();
         Ok(summary)
+    }
+
+    /// Steps the tracker through one frame and passes what it returns on.
+    fn step_frame(
+        &mut self,
+        frame: Frame,
+        detections: &FrameDetections,
+        waiting: &mut Waiting,
+        summary: &mut RunSummary,
+        ids: &mut BTreeSet<u64>,
+    ) -> Result<()> {
+        let out = self.tracker.step(&frame, detections)?;
+        waiting.frames.push_back((
+            frame.index,
+            if waiting.keep_images {
+                Some(frame)
+            } else {
+                None
+            },
+        ));
+        self.through_stages(0, out, waiting, summary, ids)?;
+        summary.frames += 1;
+        Ok(())
     }
 
     /// Passes `frames` through the stages from `first` on, then to the sinks.
@@ -455,6 +484,109 @@ mod tests {
         assert!(seen.0.iter().all(|s| s.1 == vec![2, 9] && s.2));
         assert_eq!(all.len(), 12);
         Ok(())
+    }
+
+    /// A detector that marks each frame's detection with the frame index and counts its
+    /// batches; `short` drops the last result of every batch (a broken detector).
+    struct Batching {
+        len: usize,
+        batches: std::rc::Rc<std::cell::RefCell<Vec<Vec<u32>>>>,
+        short: bool,
+    }
+
+    impl Detector for Batching {
+        fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+            Ok(FrameDetections {
+                detections: vec![crate::detection::Detection::at(
+                    frame.index,
+                    u64::from(frame.index) * 10,
+                    crate::geometry::Point::new(0.0, 0.0),
+                )],
+                foreground: None,
+            })
+        }
+
+        fn batch_len(&self) -> usize {
+            self.len
+        }
+
+        fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
+            self.batches
+                .borrow_mut()
+                .push(frames.iter().map(|f| f.index).collect());
+            let mut out: Vec<FrameDetections> = frames
+                .iter()
+                .map(|f| self.detect(f))
+                .collect::<Result<_>>()?;
+            if self.short {
+                out.pop();
+            }
+            Ok(out)
+        }
+    }
+
+    /// Records, per step, the frame and the ids of the detections it was given.
+    #[derive(Default)]
+    struct Given(Vec<(u32, Vec<u64>)>);
+
+    impl Tracker for Given {
+        fn step(&mut self, frame: &Frame, d: &FrameDetections) -> Result<Vec<FramePoints>> {
+            self.0
+                .push((frame.index, d.detections.iter().map(|x| x.id).collect()));
+            Ok(vec![FramePoints::new(frame, Vec::new())])
+        }
+
+        fn finish(&mut self) -> Result<Vec<FramePoints>> {
+            Ok(Vec::new())
+        }
+    }
+
+    #[test]
+    fn a_batching_detector_gets_frames_in_batches_and_the_tracker_each_frame_in_order() -> Result<()>
+    {
+        for len in [1, 3, 10] {
+            let mut given = Given::default();
+            let batches = std::rc::Rc::default();
+            let det = Batching {
+                len,
+                batches: std::rc::Rc::clone(&batches),
+                short: false,
+            };
+            let mut p = Pipeline::new(Box::new(&mut given));
+            p.detector = Some(Box::new(det));
+            let mut calls = Vec::new();
+            let s = p.run(frames(7), Some(7), &mut |done, _| calls.push(done))?;
+            drop(p);
+            assert_eq!(s.frames, 7);
+            assert_eq!(calls, (1..=7).collect::<Vec<u64>>());
+            let want: Vec<(u32, Vec<u64>)> =
+                (1..=7).map(|i| (i, vec![u64::from(i) * 10])).collect();
+            assert_eq!(given.0, want, "batch length {len}");
+            let expect: Vec<Vec<u32>> = (1..=7u32)
+                .collect::<Vec<_>>()
+                .chunks(len)
+                .map(<[u32]>::to_vec)
+                .collect();
+            assert_eq!(*batches.borrow(), expect, "batch length {len}");
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn a_detector_that_returns_too_few_results_is_an_error() {
+        let mut given = Given::default();
+        let det = Batching {
+            len: 3,
+            batches: std::rc::Rc::default(),
+            short: true,
+        };
+        let mut p = Pipeline::new(Box::new(&mut given));
+        p.detector = Some(Box::new(det));
+        let err = p
+            .run(frames(4), None, &mut |_, _| {})
+            .expect_err("short batch")
+            .to_string();
+        assert!(err.contains("returned 2 results for 3 frames"), "{err}");
     }
 
     /// Drops frame 2: a broken tracker is an error, not a silently shorter output.
