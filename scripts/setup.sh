@@ -14,8 +14,9 @@
 set -euo pipefail
 
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
-DETECTOR_STEPS="${DETECTOR_STEPS:-8000}"
-DETECTOR_STOP_AFTER="${DETECTOR_STOP_AFTER:-8000}"
+# Stages, each STEPS:SEED:SIM_SEED_BASE:LEARNING_RATE, every stage after the first starting
+# from the weights of the one before.
+DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
@@ -40,11 +41,22 @@ PY
   echo "setup: SSD model at $dest/frozen_inference_graph.pb" >&2
   root="$(cd "$(dirname "$0")/.." && pwd)"
   if [ ! -s "$root/models/detector.onnx" ] || [ "${ROADTRACK_RETRAIN:-0}" = "1" ]; then
-    echo "setup: training the learned detector ($DETECTOR_STEPS steps; see docs/DETECTION.md)…" >&2
+    echo "setup: training the learned detector (stages $DETECTOR_STAGES; see docs/DETECTION.md)…" >&2
     mkdir -p "$root/models"
-    (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
-      train --detector --steps "$DETECTOR_STEPS" --stop-after "$DETECTOR_STOP_AFTER" --seed 0 \
-      -o models/detector.onnx)
+    work="$(mktemp -d)"
+    init=()
+    n=0
+    for stage in $DETECTOR_STAGES; do
+      IFS=: read -r steps seed sim lr <<<"$stage"
+      n=$((n + 1))
+      (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
+        train --detector --steps "$steps" --seed "$seed" --sim-seed-base "$sim" \
+        --learning-rate "$lr" "${init[@]}" --weights-out "$work/stage$n.json" \
+        -o "$work/stage$n.onnx")
+      init=(--init "$work/stage$n.json")
+    done
+    mv "$work/stage$n.onnx" "$root/models/detector.onnx"
+    rm -rf "$work"
   fi
   echo "setup: learned detector at $root/models/detector.onnx" >&2
   shift

@@ -122,6 +122,47 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&log).expect("loss log");
     assert_eq!(text.lines().count(), 4, "{text}");
+    // A second stage from the parity fixture's weights (another shape: it is kept), and
+    // starting weights that are not a checkpoint (exit 1 naming the file).
+    let text_w = std::fs::read_to_string(cnn_fixture("centernet_parity.json")).expect("fixture");
+    let parity: serde_json::Value = serde_json::from_str(&text_w).expect("json");
+    let weights = dir.path().join("w.json");
+    std::fs::write(&weights, parity["weights"].to_string()).expect("write");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, "{\"shape\": 3}").expect("write");
+    let out_w = dir.path().join("stage2.json");
+    for (init, ok) in [(&weights, true), (&bad, false)] {
+        let o = bin()
+            .args([
+                "-q",
+                "train",
+                "--detector",
+                "--steps",
+                "2",
+                "--batch-size",
+                "2",
+            ])
+            .args(["--crop", "32", "--sim-seed-base", "7000", "--init"])
+            .arg(init)
+            .arg("--weights-out")
+            .arg(&out_w)
+            .arg("-o")
+            .arg(dir.path().join("stage2.onnx"))
+            .output()
+            .expect("run");
+        if ok {
+            assert!(o.status.success(), "{}", stderr(&o));
+            // The JSON it wrote is the fixture's shape, trained: a next stage can start there.
+            let w: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&out_w).expect("weights out"))
+                    .expect("json");
+            assert_eq!(w["shape"], parity["weights"]["shape"]);
+            assert_ne!(w["layers"], parity["weights"]["layers"]);
+        } else {
+            assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+            assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+        }
+    }
     assert!(text.starts_with("step,learning_rate,heat,boxes,total"));
     // The written model runs as --detector cnn.
     let o = bin()
@@ -134,12 +175,33 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", stderr(&o));
-    // --steps belongs to --detector.
-    let o = bin()
-        .args(["train", "--sequence", "x", "--steps", "3"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // --steps, --init and --sim-seed-base belong to --detector.
+    for flags in [
+        ["--steps", "3"],
+        ["--init", "w.json"],
+        ["--sim-seed-base", "5000"],
+        ["--weights-out", "w.json"],
+    ] {
+        let o = bin()
+            .args(["train", "--sequence", "x"])
+            .args(flags)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {}", stderr(&o));
+    }
+    // --init trains, --from-weights converts: not both; simulator seeds 0–3 are the
+    // evaluation's.
+    for flags in [
+        ["--init", "w.json", "--from-weights", "w.json"],
+        ["--sim-seed-base", "2", "--seed", "1"],
+    ] {
+        let o = bin()
+            .args(["train", "--detector", "-o", "x.onnx"])
+            .args(flags)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {}", stderr(&o));
+    }
 }
 
 #[test]

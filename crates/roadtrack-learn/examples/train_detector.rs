@@ -2,6 +2,10 @@
 //! as JSON at every checkpoint; `roadtrack train --detector` does the same and writes ONNX.
 //!
 //!     cargo run --release -p roadtrack-learn --example train_detector -- STEPS SEED OUT.json [LOG.csv]
+//!
+//! Environment: `INIT=W.json` starts from those weights, `SIM_SEED_BASE=N` renders episodes
+//! from simulator seed N (default 1000), `LEARNING_RATE=X` sets the peak rate (a second
+//! stage of a recipe; `roadtrack train --detector --init --sim-seed-base --learning-rate`).
 
 use std::io::Write as _;
 
@@ -10,11 +14,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.len() < 4 {
         return Err("usage: train_detector STEPS SEED OUT.json [LOG.csv]".into());
     }
-    let cfg = roadtrack_learn::TrainConfig {
+    let mut cfg = roadtrack_learn::TrainConfig {
         steps: args[1].parse()?,
         seed: args[2].parse()?,
         ..Default::default()
     };
+    if let Ok(p) = std::env::var("INIT") {
+        let text = std::fs::read_to_string(&p)?;
+        cfg.init = Some(std::sync::Arc::new(
+            roadtrack_learn::arch::CenterNetWeights::from_json(&text)?,
+        ));
+    }
+    if let Ok(v) = std::env::var("SIM_SEED_BASE") {
+        cfg.sim_seed_base = v.parse()?;
+    }
+    if let Ok(v) = std::env::var("LEARNING_RATE") {
+        cfg.learning_rate = v.parse()?;
+    }
     let out = std::path::PathBuf::from(&args[3]);
     let mut log = match args.get(4) {
         Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p)?)),

@@ -160,3 +160,59 @@ fn bad_crop_scales_are_refused_by_name() {
         assert!(err.contains(field), "{field}: {err}");
     }
 }
+
+#[test]
+fn a_second_stage_starts_from_the_first_stages_weights() -> Result<()> {
+    let first = tiny_config(40);
+    let mut first_losses = Vec::new();
+    let w = train(&first, 0, &mut |p| {
+        if let Progress::Step(l) = p {
+            first_losses.push(l.total);
+        }
+        Ok(())
+    })?;
+    let second = TrainConfig {
+        init: Some(std::sync::Arc::new(w.clone())),
+        sim_seed_base: 2000,
+        ..tiny_config(10)
+    };
+    let mut second_losses = Vec::new();
+    let w2 = train(&second, 0, &mut |p| {
+        if let Progress::Step(l) = p {
+            second_losses.push(l.total);
+        }
+        Ok(())
+    })?;
+    // Started from trained weights, the second stage's first steps are where the first
+    // stage ended, not where it began.
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    let (began, ended, resumed) = (
+        mean(&first_losses[..5]),
+        mean(&first_losses[30..]),
+        mean(&second_losses[..5]),
+    );
+    assert!(
+        resumed < began - 0.5 * (began - ended),
+        "second stage began at {resumed}; the first went {began} -> {ended}"
+    );
+    assert_eq!(w2.shape, w.shape);
+    assert_ne!(
+        w2.to_json()?,
+        w.to_json()?,
+        "the second stage did not train"
+    );
+    Ok(())
+}
+
+#[test]
+fn starting_weights_with_other_preprocessing_are_refused_by_name() -> Result<()> {
+    let mut w = train(&tiny_config(1), 0, &mut |_| Ok(()))?;
+    w.preprocessing.mean = [0.5; 3];
+    let cfg = TrainConfig {
+        init: Some(std::sync::Arc::new(w)),
+        ..tiny_config(1)
+    };
+    let err = cfg.validate().expect_err("other preprocessing").to_string();
+    assert!(err.contains("init"), "{err}");
+    Ok(())
+}

@@ -49,6 +49,10 @@ pub struct TrainConfig {
     pub shape: CenterNetShape,
     /// Rendering and cropping.
     pub data: DataConfig,
+    /// Start from these weights instead of random ones (a second stage of a recipe, with
+    /// its own schedule and `sim_seed_base`); their shape replaces [`TrainConfig::shape`].
+    /// The optimiser starts fresh.
+    pub init: Option<std::sync::Arc<CenterNetWeights>>,
 }
 
 impl Default for TrainConfig {
@@ -65,6 +69,7 @@ impl Default for TrainConfig {
             box_weight: 1.0,
             shape: CenterNetShape::default(),
             data: DataConfig::default(),
+            init: None,
         }
     }
 }
@@ -116,6 +121,19 @@ impl TrainConfig {
                     d.zoom_out_share, d.zoom_out_max
                 ),
             );
+        }
+        if let Some(w) = &self.init {
+            w.validate()?;
+            if w.preprocessing != training_preprocessing() {
+                return bad(
+                    "init",
+                    format!(
+                        "the starting weights expect preprocessing {:?}, the trainer feeds {:?}",
+                        w.preprocessing,
+                        training_preprocessing()
+                    ),
+                );
+            }
         }
         if self.pool_frames == 0 || self.refresh_every == 0 || self.data.frames_per_episode == 0 {
             return bad(
@@ -281,7 +299,11 @@ pub fn train(
     let device = Device::flex().autodiff();
     let prep = training_preprocessing();
     let mut rng = Pcg64Mcg::seed_from_u64(cfg.seed);
-    let mut model = CenterNet::init(&cfg.shape, &mut rng, &device);
+    let mut model = match &cfg.init {
+        Some(w) => CenterNet::from_weights(w, &device),
+        None => CenterNet::init(&cfg.shape, &mut rng, &device),
+    };
+    let shape = cfg.init.as_ref().map_or(cfg.shape, |w| w.shape);
     let mut optim = AdamConfig::new().init();
 
     let (tx, rx) = mpsc::sync_channel::<Result<Vec<TrainFrame>>>(2);
@@ -347,7 +369,7 @@ pub fn train(
                 progress(Progress::Step(loss))?;
                 let last = step + 1 == stop;
                 if last || (checkpoint_every > 0 && (step + 1).is_multiple_of(checkpoint_every)) {
-                    let w = model.weights(&cfg.shape, prep);
+                    let w = model.weights(&shape, prep);
                     progress(Progress::Checkpoint {
                         step: step + 1,
                         weights: &w,

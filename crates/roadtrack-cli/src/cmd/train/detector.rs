@@ -26,6 +26,19 @@ pub struct DetectorTrainArgs {
     /// `train_detector` example as ONNX (-o).
     #[arg(long, value_name = "W.json")]
     pub from_weights: Option<PathBuf>,
+    /// --detector: start from these weights (JSON, as `train_detector` writes, or the
+    /// checkpoint of an earlier run) instead of random ones; the optimiser and the
+    /// schedule of --steps start fresh (a second stage of a recipe).
+    #[arg(long, value_name = "W.json", conflicts_with = "from_weights")]
+    pub init: Option<PathBuf>,
+    /// --detector: also write the weights as JSON here, at every checkpoint and at the
+    /// end (what --init of a next stage reads).
+    #[arg(long, value_name = "W.json", conflicts_with = "from_weights")]
+    pub weights_out: Option<PathBuf>,
+    /// --detector: simulator seed of the first training episode [default: 1000]; a second
+    /// stage takes seeds the first did not use.
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(4..))]
+    pub sim_seed_base: Option<u64>,
     /// --detector: write every step's losses to this CSV (step, learning_rate, heat, boxes,
     /// total).
     #[arg(long, value_name = "F.csv")]
@@ -42,6 +55,9 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--checkpoint-every", a.checkpoint_every.is_some()),
             ("--loss-log", a.loss_log.is_some()),
             ("--from-weights", a.from_weights.is_some()),
+            ("--init", a.init.is_some()),
+            ("--weights-out", a.weights_out.is_some()),
+            ("--sim-seed-base", a.sim_seed_base.is_some()),
         ],
         "only with --detector",
     )
@@ -94,6 +110,15 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
         config.steps = v;
     }
     config.stop_after = d.stop_after;
+    if let Some(p) = &d.init {
+        let text = std::fs::read_to_string(p).map_err(|e| roadtrack::Error::io(p, e))?;
+        let w = roadtrack_learn::arch::CenterNetWeights::from_json(&text)
+            .with_context(|| format!("reading the starting weights {}", p.display()))?;
+        config.init = Some(std::sync::Arc::new(w));
+    }
+    if let Some(v) = d.sim_seed_base {
+        config.sim_seed_base = v;
+    }
     if let Some(v) = d.crop {
         config.data.crop = v;
     }
@@ -107,6 +132,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
         config.validate(),
         &[
             ("crop", "--crop", d.crop.is_some()),
+            ("init", "--init", d.init.is_some()),
             ("batch", "--batch-size", args.batch_size.is_some()),
             (
                 "learning_rate",
@@ -172,6 +198,9 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
             }
             Progress::Checkpoint { step, weights } => {
                 roadtrack_cnn::centernet::write_onnx(&output, &to_cnn(weights)?)?;
+                if let Some(p) = &d.weights_out {
+                    roadtrack::io::atomic::write_bytes_atomic(p, weights.to_json()?.as_bytes())?;
+                }
                 bar.suspend(|| {
                     if step < stop {
                         eprintln!("checkpoint after {step} steps: {}", output.display());
