@@ -24,6 +24,35 @@
 //!
 //! See `docs/CNN.md` for models, preprocessing, dense mode, and how to bring your own model.
 
+/// `Detector` for a network detector whose `frame_detections(&self, &Frame)` depends on
+/// the frame alone: frames come in batches of one per rayon thread, run in parallel.
+macro_rules! stateless_detector {
+    ($t:ty) => {
+        impl roadtrack::detect::Detector for $t {
+            fn detect(
+                &mut self,
+                frame: &roadtrack::frame::Frame,
+            ) -> roadtrack::error::Result<roadtrack::detect::FrameDetections> {
+                self.frame_detections(frame)
+            }
+
+            fn batch_len(&self) -> usize {
+                // Choice: one frame per thread at a time; a frame is too small a job to split.
+                rayon::current_num_threads().max(1)
+            }
+
+            fn detect_batch(
+                &mut self,
+                frames: &[roadtrack::frame::Frame],
+            ) -> roadtrack::error::Result<Vec<roadtrack::detect::FrameDetections>> {
+                let this = &*self;
+                roadtrack::detect::detect_stateless_batch(frames, |f| this.frame_detections(f))
+            }
+        }
+    };
+}
+pub(crate) use stateless_detector;
+
 pub mod model;
 pub mod net;
 pub mod train;

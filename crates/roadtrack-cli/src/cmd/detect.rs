@@ -150,11 +150,7 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     let mut frames = frames.into_iter();
     let mut batch = Vec::with_capacity(batch_len);
     loop {
-        batch.clear();
-        for frame in frames.by_ref().take(batch_len) {
-            batch.push(frame?);
-        }
-        if batch.is_empty() {
+        if !roadtrack::detect::next_batch(&mut frames, batch_len, &mut batch)? {
             break;
         }
         let results = roadtrack::detect::detect_checked(detector.as_mut(), &batch)?;

@@ -16,7 +16,7 @@ use crate::onnx::{
 };
 use crate::window::Preprocessing;
 use roadtrack::class::ObjectClass;
-use roadtrack::detect::{Detector, FrameDetections};
+use roadtrack::detect::FrameDetections;
 use roadtrack::detection::Detection;
 use roadtrack::error::{Error, Result};
 use roadtrack::frame::Frame;
@@ -597,21 +597,7 @@ impl CenterNetDetector {
     }
 }
 
-impl Detector for CenterNetDetector {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
-        self.frame_detections(frame)
-    }
-
-    fn batch_len(&self) -> usize {
-        // Choice: one frame per thread at a time; a frame is too small a job to split.
-        rayon::current_num_threads().max(1)
-    }
-
-    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
-        let this = &*self;
-        roadtrack::detect::detect_stateless_batch(frames, |f| this.frame_detections(f))
-    }
-}
+crate::stateless_detector!(CenterNetDetector);
 
 /// The detector's heat map as the filters' dense likelihood (seed 004's score map): the
 /// channels of the filter's target class.

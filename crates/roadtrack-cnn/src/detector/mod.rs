@@ -25,7 +25,7 @@ pub use decode::{DetrScores, Layout};
 use super::onnx::{model_error, read_image_model, tract_load};
 use super::window::{Preprocessing, sample_grid_xy};
 use roadtrack::class::ObjectClass;
-use roadtrack::detect::{Detector, FrameDetections};
+use roadtrack::detect::FrameDetections;
 use roadtrack::detection::Detection;
 use roadtrack::error::{Error, Result};
 use roadtrack::frame::Frame;
@@ -435,18 +435,4 @@ impl OnnxDetector {
     }
 }
 
-impl Detector for OnnxDetector {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
-        self.frame_detections(frame)
-    }
-
-    fn batch_len(&self) -> usize {
-        // Choice: one frame per thread at a time; a frame is too small a job to split.
-        rayon::current_num_threads().max(1)
-    }
-
-    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
-        let this = &*self;
-        roadtrack::detect::detect_stateless_batch(frames, |f| this.frame_detections(f))
-    }
-}
+crate::stateless_detector!(OnnxDetector);

@@ -3,6 +3,7 @@
 
 use super::*;
 use image::Rgb;
+use roadtrack::detect::Detector;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -61,6 +61,22 @@ pub trait Detector {
     }
 }
 
+/// Refills `batch` with up to `len` next frames of `frames`; false when none is left.
+///
+/// # Errors
+/// The first frame that cannot be read.
+pub fn next_batch(
+    frames: &mut impl Iterator<Item = Result<Frame>>,
+    len: usize,
+    batch: &mut Vec<Frame>,
+) -> Result<bool> {
+    batch.clear();
+    for frame in frames.by_ref().take(len.max(1)) {
+        batch.push(frame?);
+    }
+    Ok(!batch.is_empty())
+}
+
 /// `detector`'s [`Detector::detect_batch`] on `frames`, checked to give one result per frame.
 ///
 /// # Errors

@@ -139,11 +139,7 @@ impl<'a> Pipeline<'a> {
         loop {
             // Choice: a detector that takes several frames at once (the networks) gets them
             // as one batch; the tracker still steps through them one at a time, in order.
-            batch.clear();
-            for frame in frames.by_ref().take(batch_len) {
-                batch.push(frame?);
-            }
-            if batch.is_empty() {
+            if !crate::detect::next_batch(&mut frames, batch_len, &mut batch)? {
                 break;
             }
             found.clear();
