@@ -234,8 +234,13 @@ pub struct LifecycleArgs {
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
     /// shadow suppression, hold or region splitting).
-    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames"])]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps"])]
     pub as_published: bool,
+    /// Offline gap closing: join a track that ends to one that starts up to N frames later
+    /// (or up to 4 frames earlier) where its motion leads, under the first one's id, with
+    /// interpolated boxes between (0: off). Holds the whole run's points until the end.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub link_gaps: u32,
 }
 
 impl LifecycleArgs {
@@ -261,6 +266,21 @@ impl LifecycleArgs {
                     true,
                 ),
             ],
+            None,
+        )?;
+        Ok(config)
+    }
+
+    /// The gap-closing stage's configuration (off unless `--link-gaps`).
+    pub fn link(&self) -> Result<roadtrack::track::link::LinkConfig> {
+        use roadtrack::track::link::LinkConfig;
+        let config = LinkConfig {
+            max_gap_frames: self.link_gaps,
+            ..LinkConfig::recommended()
+        };
+        crate::flags::check_overrides(
+            config.validate(),
+            &[("max_gap_frames/max_overlap_frames", "--link-gaps", true)],
             None,
         )?;
         Ok(config)

@@ -490,3 +490,57 @@ fn filters_weigh_particles_by_the_detections_and_refuse_bad_settings() {
         "{e}"
     );
 }
+
+/// Issue 14 item 1, gap closing: `--link-gaps` joins the PHD's broken tracks on the crowded
+/// crossing (fewer ids, IDF1 up), writes the same at one and two threads, and is refused
+/// with `--as-published`.
+#[test]
+fn link_gaps_joins_broken_tracks_deterministically() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 100);
+    let config =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/filters-pedestrians.toml");
+    let run = |link: &str, threads: &str| {
+        let out = dir.path().join(format!("phd-{link}-{threads}.txt"));
+        let o = bin()
+            .env("RAYON_NUM_THREADS", threads)
+            .arg("track")
+            .arg(&seq)
+            .args(["--method", "phd", "--detector", "file", "-q", "--config"])
+            .arg(&config)
+            .args(["--link-gaps", link, "-o"])
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        out
+    };
+    let ids = |p: &Path| {
+        let t = roadtrack::io::mot::read_tracks(p).expect("tracks");
+        let mut ids: Vec<u64> = t.iter().map(|r| r.id).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len()
+    };
+    let plain = run("0", "2");
+    let linked = run("10", "2");
+    let (n0, n1) = (ids(&plain), ids(&linked));
+    let ((h0, i0), (h1, i1)) = (hota_idf1(&seq, &plain), hota_idf1(&seq, &linked));
+    assert!(n1 < n0, "ids {n0} → {n1}");
+    assert!(
+        i1 > i0 && h1 > h0 - 0.005,
+        "HOTA {h0} → {h1}, IDF1 {i0} → {i1}"
+    );
+    assert_eq!(
+        std::fs::read(&linked).expect("read"),
+        std::fs::read(run("10", "1")).expect("read"),
+        "1 and 2 threads differ"
+    );
+    let o = bin()
+        .args(["track", "x", "--method", "phd", "--as-published"])
+        .args(["--link-gaps", "5"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -11,6 +11,7 @@ use roadtrack::frame::Frame;
 use roadtrack::io::source;
 use roadtrack::track::confirm::LifecycleStage;
 use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, Measurements};
+use roadtrack::track::link::GapLinkStage;
 use roadtrack::track::method::BuiltTracker;
 use roadtrack::track::mrf::object_map::BLOCK_PX;
 use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
@@ -332,6 +333,13 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     };
     let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
     let lifecycle = args.lifecycle.config()?;
+    let link = args.lifecycle.link()?;
+    if !link.is_off() {
+        // Choice: before the life cycle, so that confirmation, coasting, box smoothing and
+        // the majority class see the joined tracks (PHD on the crossing, seeds 1–3: HOTA
+        // 0.702 / IDF1 0.819, against 0.700 / 0.814 with the stage after it).
+        stages.push(Box::new(GapLinkStage::new(link)?));
+    }
     if !lifecycle.is_off() {
         stages.push(Box::new(LifecycleStage::new(lifecycle)?));
     }

@@ -13,6 +13,7 @@
 pub mod confirm;
 pub mod filter;
 pub mod lifecycle;
+pub mod link;
 pub mod method;
 pub mod mrf;
 pub mod pipeline;
