@@ -16,7 +16,7 @@ set -euo pipefail
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
 # Stages, each STEPS:SEED:SIM_SEED_BASE:LEARNING_RATE, every stage after the first starting
 # from the weights of the one before.
-DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4}"
+DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4 4000:3:11000:3e-4}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
