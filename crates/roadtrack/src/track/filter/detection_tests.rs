@@ -420,10 +420,13 @@ fn detection_count_experiment() -> Result<()> {
     ] {
         let mut sure = pedestrians.clone();
         sure.detections.detection_prob = 0.95;
+        let mut short = sure.clone();
+        short.phd.survival_prob = 0.95;
         for (name, cfg) in [
             ("defaults", FilterTrackConfig::default()),
             ("filters-pedestrians.toml", pedestrians.clone()),
             ("filters-pedestrians.toml, p_D 0.95", sure),
+            ("filters-pedestrians.toml, p_D 0.95, p_s 0.95", short),
         ] {
             let mut line = Vec::new();
             let (mut mae, mut mae_all, mut truth, mut sum) = (0.0, 0.0, 0.0, 0.0);
