@@ -52,7 +52,7 @@ import sys
 from collections import defaultdict
 acc = defaultdict(list)
 for line in open(sys.argv[1]):
-    key, *v = line.split()
+    key, *v = line.rsplit(maxsplit=4)
     acc[tuple(key.split("|"))].append([float(x) for x in v])
 mean = {k: [sum(r[i] for r in rows) / len(rows) for i in range(4)] for k, rows in acc.items()}
 print(f"| scene | method | HOTA | IDF1 | AssA | MOTA | HOTA, --link-gaps {sys.argv[2]} | IDF1 | AssA | MOTA |")
