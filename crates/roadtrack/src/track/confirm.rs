@@ -211,23 +211,8 @@ impl LifecycleStage {
             if after.frame - before.frame - 1 > max_gap {
                 continue;
             }
-            let s = f64::from(frame - before.frame) / f64::from(after.frame - before.frame);
-            let lerp = |a: f64, b: f64| a + s * (b - a);
-            let (ca, cb) = (before.bbox.centre(), after.bbox.centre());
-            let (w, h) = t.size.unwrap_or((before.bbox.width, before.bbox.height));
-            let p = TrackPoint {
-                frame,
-                time_s: fp.time_s,
-                id: *id,
-                class: before.class.clone(),
-                bbox: BBox::from_centre(
-                    crate::geometry::Point::new(lerp(ca.x, cb.x), lerp(ca.y, cb.y)),
-                    lerp(w, after.bbox.width),
-                    lerp(h, after.bbox.height),
-                ),
-                score: before.score.min(after.score),
-                ground: None,
-            };
+            let size = t.size.unwrap_or((before.bbox.width, before.bbox.height));
+            let p = super::interpolated_point(before, size, after, frame, fp.time_s, *id);
             t.last_written = Some(p.clone());
             out.push(p);
         }
@@ -285,20 +270,7 @@ mod tests {
         }
     }
 
-    fn frames(points: &[TrackPoint], n: u32) -> Vec<FramePoints> {
-        (1..=n)
-            .map(|f| FramePoints {
-                frame: f,
-                time_s: f64::from(f - 1) / 10.0,
-                points: {
-                    let mut v: Vec<TrackPoint> =
-                        points.iter().filter(|p| p.frame == f).cloned().collect();
-                    v.sort_by_key(|p| p.id);
-                    v
-                },
-            })
-            .collect()
-    }
+    use crate::track::frames_of as frames;
 
     fn run(config: LifecycleConfig, input: Vec<FramePoints>) -> Result<Vec<FramePoints>> {
         let mut s = LifecycleStage::new(config)?;

@@ -29,7 +29,7 @@
 use super::FramePoints;
 use super::pipeline::PointStage;
 use crate::error::{Error, Result};
-use crate::geometry::{BBox, Point};
+use crate::geometry::Point;
 use crate::track_point::TrackPoint;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -313,27 +313,19 @@ pub fn link(cfg: &LinkConfig, frames: &mut [FramePoints]) -> Result<usize> {
             continue;
         };
         let pb = &tracks[b][0];
-        let span = f64::from(pb.frame - pa.frame);
+        let size = (pa.bbox.width, pa.bbox.height);
         for frame in pa.frame + 1..pb.frame {
             let Some(&i) = index.get(&frame) else {
                 continue;
             };
-            let s = f64::from(frame - pa.frame) / span;
-            let lerp = |x: f64, y: f64| x + s * (y - x);
-            let (ca, cb) = (pa.bbox.centre(), pb.bbox.centre());
-            fills.push(TrackPoint {
+            fills.push(super::interpolated_point(
+                pa,
+                size,
+                pb,
                 frame,
-                time_s: frames[i].time_s,
-                id: new_id[a],
-                class: pa.class.clone(),
-                bbox: BBox::from_centre(
-                    Point::new(lerp(ca.x, cb.x), lerp(ca.y, cb.y)),
-                    lerp(pa.bbox.width, pb.bbox.width),
-                    lerp(pa.bbox.height, pb.bbox.height),
-                ),
-                score: pa.score.min(pb.score),
-                ground: None,
-            });
+                frames[i].time_s,
+                new_id[a],
+            ));
         }
     }
     for f in frames.iter_mut() {
@@ -398,6 +390,7 @@ impl PointStage for GapLinkStage {
 mod tests {
     use super::*;
     use crate::class::ObjectClass;
+    use crate::geometry::BBox;
     use rand::RngExt;
 
     fn point(frame: u32, id: u64, x: f64, y: f64, w: f64) -> TrackPoint {
@@ -412,20 +405,7 @@ mod tests {
         }
     }
 
-    fn frames(points: &[TrackPoint], n: u32) -> Vec<FramePoints> {
-        (1..=n)
-            .map(|f| FramePoints {
-                frame: f,
-                time_s: f64::from(f - 1) / 10.0,
-                points: {
-                    let mut v: Vec<TrackPoint> =
-                        points.iter().filter(|p| p.frame == f).cloned().collect();
-                    v.sort_by_key(|p| p.id);
-                    v
-                },
-            })
-            .collect()
-    }
+    use crate::track::frames_of as frames;
 
     /// Points of an object moving at `v` px/frame from `x0`, in `frames`, under `id`.
     fn walk(id: u64, frames: std::ops::RangeInclusive<u32>, x0: f64, v: f64) -> Vec<TrackPoint> {

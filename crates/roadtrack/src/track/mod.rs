@@ -50,6 +50,53 @@ impl FramePoints {
     }
 }
 
+/// A point of track `id` in `frame` (at `time_s`) between `before` (box size
+/// `size_before`) and `after`: centre and size linear in the frame number, `before`'s class,
+/// the lower score, no ground state. Coasting ([`confirm`]) and gap closing ([`link`]) fill
+/// a track's missing frames with it.
+pub(crate) fn interpolated_point(
+    before: &TrackPoint,
+    size_before: (f64, f64),
+    after: &TrackPoint,
+    frame: u32,
+    time_s: f64,
+    id: u64,
+) -> TrackPoint {
+    let s = f64::from(frame - before.frame) / f64::from(after.frame - before.frame);
+    let lerp = |a: f64, b: f64| a + s * (b - a);
+    let (ca, cb) = (before.bbox.centre(), after.bbox.centre());
+    TrackPoint {
+        frame,
+        time_s,
+        id,
+        class: before.class.clone(),
+        bbox: crate::geometry::BBox::from_centre(
+            crate::geometry::Point::new(lerp(ca.x, cb.x), lerp(ca.y, cb.y)),
+            lerp(size_before.0, after.bbox.width),
+            lerp(size_before.1, after.bbox.height),
+        ),
+        score: before.score.min(after.score),
+        ground: None,
+    }
+}
+
+/// Test input: frames `1..=n` at 10 frames/s holding `points` by frame, sorted by id.
+#[cfg(test)]
+pub(crate) fn frames_of(points: &[TrackPoint], n: u32) -> Vec<FramePoints> {
+    (1..=n)
+        .map(|f| FramePoints {
+            frame: f,
+            time_s: f64::from(f - 1) / 10.0,
+            points: {
+                let mut v: Vec<TrackPoint> =
+                    points.iter().filter(|p| p.frame == f).cloned().collect();
+                v.sort_by_key(|p| p.id);
+                v
+            },
+        })
+        .collect()
+}
+
 /// A multi-object tracker that consumes frames in order.
 ///
 /// Implemented by [`relaxation::tracker::RelaxationTracker`] (seed 000 chained frame to
