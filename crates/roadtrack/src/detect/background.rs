@@ -231,4 +231,34 @@ mod tests {
         }
         Ok(())
     }
+
+    /// The per-pixel passes split the frame over the threads (large frames only): detections,
+    /// masks and the learnt background are the same at 1 and 2 threads.
+    #[test]
+    fn same_output_at_one_and_two_threads() -> Result<()> {
+        let frames = roadtrack_sim::testkit::moving_boxes(400, 240, 30, 6);
+        let run = |threads: usize| -> Result<(Vec<FrameDetections>, RgbImage)> {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| crate::Error::Invalid(e.to_string()))?;
+            pool.install(|| {
+                let cfg = BackgroundDetectorConfig::default();
+                let mut det =
+                    BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(30))?;
+                let out = frames
+                    .iter()
+                    .map(|f| det.detect_with_mask(f))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok((out, det.background().background()))
+            })
+        };
+        let (one, bg_one) = run(1)?;
+        let (two, bg_two) = run(2)?;
+        let found: usize = one.iter().map(|f| f.detections.len()).sum();
+        assert!(found >= 100, "{found} detections");
+        assert_eq!(one, two);
+        assert_eq!(bg_one, bg_two);
+        Ok(())
+    }
 }

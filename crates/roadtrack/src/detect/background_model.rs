@@ -368,20 +368,29 @@ impl BackgroundModel {
     /// # Errors
     /// The image does not have the model's size.
     pub fn classify(&mut self, frame_index: u32, image: &RgbImage) -> Result<GrayImage> {
+        use rayon::prelude::*;
         self.check_size(frame_index, image)?;
         let p = Params::of(&self.config);
         let mut mask = vec![0u8; self.var.len()];
-        for ((((m, c), mu), v), rgb) in mask
-            .iter_mut()
-            .zip(self.class.iter_mut())
-            .zip(self.mean.chunks_exact(3))
-            .zip(&self.var)
-            .zip(image.as_raw().chunks_exact(3))
-        {
-            let (class, _, _) = p.classify(rgb, mu, *v);
-            *c = class;
-            *m = if class == CLASS_FG { 255 } else { 0 };
-        }
+        let n = pixels_per_task(self.var.len());
+        mask.par_chunks_mut(n)
+            .zip(self.class.par_chunks_mut(n))
+            .zip(self.mean.par_chunks(3 * n))
+            .zip(self.var.par_chunks(n))
+            .zip(image.as_raw().par_chunks(3 * n))
+            .for_each(|((((mask, class), mean), var), px)| {
+                for ((((m, c), mu), v), rgb) in mask
+                    .iter_mut()
+                    .zip(class.iter_mut())
+                    .zip(mean.chunks_exact(3))
+                    .zip(var)
+                    .zip(px.chunks_exact(3))
+                {
+                    let (class, _, _) = p.classify(rgb, mu, *v);
+                    *c = class;
+                    *m = if class == CLASS_FG { 255 } else { 0 };
+                }
+            });
         GrayImage::from_raw(self.width, self.height, mask)
             .ok_or_else(|| Error::Invalid("mask size mismatch".into()))
     }
@@ -408,39 +417,57 @@ impl BackgroundModel {
                 expected: (self.width, self.height),
             });
         }
+        use rayon::prelude::*;
         let p = Params::of(&self.config);
         let hold = self.config.hold_still_s as f32;
         let t = time_s as f32;
-        for (((((mu, v), &c), since), rgb), &h) in self
-            .mean
-            .chunks_exact_mut(3)
-            .zip(self.var.iter_mut())
-            .zip(&self.class)
-            .zip(self.held_since.iter_mut())
-            .zip(image.as_raw().chunks_exact(3))
-            .zip(held.as_raw())
-        {
-            if h != 0 {
-                if since.is_nan() {
-                    *since = t;
+        let n = pixels_per_task(self.var.len());
+        self.mean
+            .par_chunks_mut(3 * n)
+            .zip(self.var.par_chunks_mut(n))
+            .zip(self.class.par_chunks(n))
+            .zip(self.held_since.par_chunks_mut(n))
+            .zip(image.as_raw().par_chunks(3 * n))
+            .zip(held.as_raw().par_chunks(n))
+            .for_each(|(((((mean, var), class), held_since), px), held)| {
+                for (((((mu, v), &c), since), rgb), &h) in mean
+                    .chunks_exact_mut(3)
+                    .zip(var.iter_mut())
+                    .zip(class)
+                    .zip(held_since.iter_mut())
+                    .zip(px.chunks_exact(3))
+                    .zip(held)
+                {
+                    if h != 0 {
+                        if since.is_nan() {
+                            *since = t;
+                        }
+                        if t - *since < hold {
+                            continue;
+                        }
+                    } else {
+                        *since = f32::NAN;
+                    }
+                    let d = [
+                        f32::from(rgb[0]) - mu[0],
+                        f32::from(rgb[1]) - mu[1],
+                        f32::from(rgb[2]) - mu[2],
+                    ];
+                    let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    let a = if c == CLASS_BG { p.a_bg } else { p.a_fg };
+                    p.learn(mu, v, d, dist2, a);
                 }
-                if t - *since < hold {
-                    continue;
-                }
-            } else {
-                *since = f32::NAN;
-            }
-            let d = [
-                f32::from(rgb[0]) - mu[0],
-                f32::from(rgb[1]) - mu[1],
-                f32::from(rgb[2]) - mu[2],
-            ];
-            let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            let a = if c == CLASS_BG { p.a_bg } else { p.a_fg };
-            p.learn(mu, v, d, dist2, a);
-        }
+            });
         Ok(())
     }
+}
+
+/// Pixels per rayon task of the per-pixel passes: the frame in one contiguous piece per
+/// thread, and no split below 64 Ki pixels (a task costs more than it saves there). Each
+/// pixel is computed alone, so the result does not depend on the split.
+fn pixels_per_task(n_px: usize) -> usize {
+    n_px.div_ceil(rayon::current_num_threads().max(1))
+        .max(64 * 1024)
 }
 
 /// Indices of `bootstrap` frames spread evenly over `total` frames (0-based positions in the

@@ -322,11 +322,11 @@ impl Splitter {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A camera at height 8 m looking along +y, tilted down 20°, focal 512 px, 640 × 480.
-    fn pinhole() -> (Calibration, impl Fn(f64, f64, f64) -> Point) {
+    pub(crate) fn pinhole() -> (Calibration, impl Fn(f64, f64, f64) -> Point) {
         let (f, cx, cy) = (512.0, 320.0, 240.0);
         let tilt = 20f64.to_radians();
         let (s, c) = tilt.sin_cos();
