@@ -19,9 +19,15 @@
 //!   ([`crate::assignment::linear_sum_assignment`], per connected group of candidates), so
 //!   each track gets at most one predecessor and one successor and chains form.
 //!
-//! Choice: positions and sizes only. A [`TrackPoint`] carries no colour, and the detections'
-//! colours are gone by the time points reach a stage; the size-ratio gate stands in for
-//! appearance.
+//! Colour (when `colour_gate` > 0 and the run has images): the stage takes each point's
+//! mean colour from the frame, over the central half of its box (width and height halved,
+//! so that little of the road around the object counts), as the frame passes
+//! ([`PointStage::see_image`]). A track's end colour is the mean over its last
+//! `velocity_frames + 1` points, its start colour over its first; pairs whose colours are
+//! more than `colour_gate` apart (Euclidean RGB, 0–255 per channel) never join, and the
+//! others add `colour_weight · distance / colour_gate` to their cost. Choice: the box's
+//! centre rather than a mask (points carry boxes only) and the mean rather than a histogram
+//! (a few pixels for far objects).
 //!
 //! The stage holds every frame until the end of the run (memory: all points of the
 //! sequence) and releases them all at [`PointStage::finish`].
@@ -50,8 +56,15 @@ pub struct LinkConfig {
     pub gate_growth: f64,
     /// Widths or heights more than this ratio apart never join. Default 2.
     pub max_size_ratio: f64,
-    /// Frames over which a track's end (start) velocity is measured. Default 5.
+    /// Frames over which a track's end (start) velocity, and colour, is measured.
+    /// Default 5.
     pub velocity_frames: u32,
+    /// Colours of an end and a start further apart than this (Euclidean RGB distance,
+    /// 0–255 per channel) never join. 0 (the default) leaves colour out.
+    pub colour_gate: f64,
+    /// Weight of the colour distance (as a fraction of `colour_gate`) in the join cost,
+    /// against the motion error's (a fraction of its gate). Default 1.
+    pub colour_weight: f64,
 }
 
 impl Default for LinkConfig {
@@ -63,6 +76,8 @@ impl Default for LinkConfig {
             gate_growth: 0.05,
             max_size_ratio: 2.0,
             velocity_frames: 5,
+            colour_gate: 0.0,
+            colour_weight: 1.0,
         }
     }
 }
@@ -80,6 +95,11 @@ impl LinkConfig {
     /// Whether the stage is off.
     pub fn is_off(&self) -> bool {
         self.max_gap_frames == 0
+    }
+
+    /// Whether joins look at colour.
+    pub fn uses_colour(&self) -> bool {
+        !self.is_off() && self.colour_gate > 0.0
     }
 
     /// Checks every field.
@@ -102,6 +122,12 @@ impl LinkConfig {
         }
         if self.velocity_frames == 0 || self.velocity_frames > 1000 {
             return bad("velocity_frames", "must be 1–1000");
+        }
+        if !(self.colour_gate.is_finite() && self.colour_gate >= 0.0) {
+            return bad("colour_gate", "must be finite and ≥ 0");
+        }
+        if !(0.0..=100.0).contains(&self.colour_weight) {
+            return bad("colour_weight", "must be 0–100");
         }
         Ok(())
     }
@@ -126,6 +152,50 @@ fn velocity(points: &[TrackPoint], n: usize, from_start: bool) -> (f64, f64) {
     ((cb.x - ca.x) / df, (cb.y - ca.y) / df)
 }
 
+/// Mean colour of each point, by (id, frame); points without one are absent.
+pub type Colours = BTreeMap<(u64, u32), [f64; 3]>;
+
+/// Mean colour of `image` over the central half of `bbox` (clipped to the image; at least
+/// one pixel), or `None` when that is empty.
+pub fn centre_colour(image: &image::RgbImage, bbox: &crate::geometry::BBox) -> Option<[f64; 3]> {
+    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    let c = bbox.centre();
+    let (hw, hh) = ((bbox.width / 4.0).max(0.5), (bbox.height / 4.0).max(0.5));
+    let x0 = (c.x - hw).floor().clamp(0.0, w) as u32;
+    let x1 = (c.x + hw).ceil().clamp(0.0, w) as u32;
+    let y0 = (c.y - hh).floor().clamp(0.0, h) as u32;
+    let y1 = (c.y + hh).ceil().clamp(0.0, h) as u32;
+    if x0 >= x1 || y0 >= y1 {
+        return None;
+    }
+    let mut sum = [0u64; 3];
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let p = image.get_pixel(x, y);
+            for (s, &v) in sum.iter_mut().zip(&p.0) {
+                *s += u64::from(v);
+            }
+        }
+    }
+    let n = f64::from((x1 - x0) * (y1 - y0));
+    Some(sum.map(|s| s as f64 / n))
+}
+
+/// Mean of the known colours of `points` (`None` when none is known).
+fn mean_colour(colours: &Colours, points: &[TrackPoint]) -> Option<[f64; 3]> {
+    let mut sum = [0.0; 3];
+    let mut n = 0.0;
+    for p in points {
+        if let Some(c) = colours.get(&(p.id, p.frame)) {
+            for (s, v) in sum.iter_mut().zip(c) {
+                *s += v;
+            }
+            n += 1.0;
+        }
+    }
+    (n > 0.0).then(|| sum.map(|s| s / n))
+}
+
 /// A candidate join of track `a` (its points before `cut`) to track `b`.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
@@ -135,7 +205,7 @@ struct Candidate {
 }
 
 /// The join cost of `a` into `b` (`None` outside the gates).
-fn join_cost(cfg: &LinkConfig, a: &Track, b: &Track) -> Option<f64> {
+fn join_cost(cfg: &LinkConfig, colours: &Colours, a: &Track, b: &Track) -> Option<f64> {
     let (a0, a1) = (a.first()?, a.last()?);
     let (b0, b1) = (b.first()?, b.last()?);
     // `b` must start after `a` starts and end after `a` ends.
@@ -169,7 +239,24 @@ fn join_cost(cfg: &LinkConfig, a: &Track, b: &Track) -> Option<f64> {
     let side =
         0.5 * (pa.bbox.width.max(pa.bbox.height) + b0.bbox.width.max(b0.bbox.height)).max(1e-9);
     let gate = side * (cfg.gate + cfg.gate_growth * gf);
-    (d <= gate).then_some(d / gate)
+    if d > gate {
+        return None;
+    }
+    let mut cost = d / gate;
+    if cfg.colour_gate > 0.0 {
+        let end = &a[a.len().saturating_sub(n + 1)..];
+        let start = &b[..b.len().min(n + 1)];
+        // Choice: a pair whose colour is unknown at either side is judged on motion alone.
+        if let (Some(ca), Some(cb)) = (mean_colour(colours, end), mean_colour(colours, start)) {
+            let dc = ((ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2) + (ca[2] - cb[2]).powi(2))
+                .sqrt();
+            if dc > cfg.colour_gate {
+                return None;
+            }
+            cost += cfg.colour_weight * dc / cfg.colour_gate;
+        }
+    }
+    Some(cost)
 }
 
 /// The joins `a → b`: a minimum-cost one-to-one assignment of ends to starts, solved per
@@ -207,7 +294,8 @@ fn choose(candidates: &[Candidate]) -> Result<Vec<(u64, u64)>> {
     for group in groups.values() {
         let ends: Vec<u64> = unique(group.iter().map(|c| c.a));
         let starts: Vec<u64> = unique(group.iter().map(|c| c.b));
-        // Choice: an infeasible pair costs more than any feasible one (costs are ≤ 1), so
+        // Choice: an infeasible pair costs more than any feasible one (costs are ≤ 1 plus
+        // the colour weight), so
         // the assignment never trades a feasible join for it; such pairs are dropped.
         const INFEASIBLE: f64 = 1e6;
         let mut cost = vec![INFEASIBLE; ends.len() * starts.len()];
@@ -240,7 +328,7 @@ fn unique(it: impl Iterator<Item = u64>) -> Vec<u64> {
 ///
 /// # Errors
 /// The assignment solver failed (it does not on finite costs).
-pub fn link(cfg: &LinkConfig, frames: &mut [FramePoints]) -> Result<usize> {
+pub fn link(cfg: &LinkConfig, colours: &Colours, frames: &mut [FramePoints]) -> Result<usize> {
     if cfg.is_off() {
         return Ok(0);
     }
@@ -267,7 +355,7 @@ pub fn link(cfg: &LinkConfig, frames: &mut [FramePoints]) -> Result<usize> {
                 if a == b {
                     continue;
                 }
-                if let Some(cost) = join_cost(cfg, &tracks[a], tb) {
+                if let Some(cost) = join_cost(cfg, colours, &tracks[a], tb) {
                     candidates.push(Candidate { a: *a, b: *b, cost });
                 }
             }
@@ -350,6 +438,7 @@ pub fn link(cfg: &LinkConfig, frames: &mut [FramePoints]) -> Result<usize> {
 pub struct GapLinkStage {
     config: LinkConfig,
     held: Vec<FramePoints>,
+    colours: Colours,
     joins: usize,
 }
 
@@ -363,6 +452,7 @@ impl GapLinkStage {
         Ok(Self {
             config,
             held: Vec::new(),
+            colours: Colours::new(),
             joins: 0,
         })
     }
@@ -381,8 +471,21 @@ impl PointStage for GapLinkStage {
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
         let mut frames = std::mem::take(&mut self.held);
-        self.joins += link(&self.config, &mut frames)?;
+        let colours = std::mem::take(&mut self.colours);
+        self.joins += link(&self.config, &colours, &mut frames)?;
         Ok(frames)
+    }
+
+    fn wants_images(&self) -> bool {
+        self.config.uses_colour()
+    }
+
+    fn see_image(&mut self, points: &FramePoints, image: &crate::frame::Frame) {
+        for p in &points.points {
+            if let Some(c) = centre_colour(&image.image, &p.bbox) {
+                self.colours.insert((p.id, p.frame), c);
+            }
+        }
     }
 }
 
@@ -428,7 +531,7 @@ mod tests {
         pts.extend(walk(2, 14..=20, 0.0, 3.0));
         let input = frames(&pts, 20);
         let mut out = input.clone();
-        assert_eq!(link(&LinkConfig::default(), &mut out)?, 0);
+        assert_eq!(link(&LinkConfig::default(), &Colours::new(), &mut out)?, 0);
         assert_eq!(out, input);
         Ok(())
     }
@@ -438,7 +541,7 @@ mod tests {
         let mut pts = walk(1, 1..=10, 0.0, 3.0);
         pts.extend(walk(2, 14..=20, 0.0, 3.0));
         let mut out = frames(&pts, 20);
-        assert_eq!(link(&LinkConfig::recommended(), &mut out)?, 1);
+        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 1);
         for f in 1..=20 {
             assert_eq!(ids_at(&out, f), vec![1], "frame {f}");
             let c = out[f as usize - 1].points[0].bbox.centre();
@@ -461,17 +564,17 @@ mod tests {
         let mut pts = walk(1, 1..=10, 0.0, 3.0);
         pts.extend(walk(2, 17..=25, 0.0, 3.0));
         let mut out = frames(&pts, 25);
-        assert_eq!(link(&cfg, &mut out)?, 0);
+        assert_eq!(link(&cfg, &Colours::new(), &mut out)?, 0);
         // On time, but 15 px (1.5 box sides) off the predicted position.
         let mut pts = walk(1, 1..=10, 0.0, 3.0);
         pts.extend(walk(2, 13..=25, 15.0, 3.0));
         let mut out = frames(&pts, 25);
-        assert_eq!(link(&cfg, &mut out)?, 0);
+        assert_eq!(link(&cfg, &Colours::new(), &mut out)?, 0);
         // On the path, but three times as large.
         let mut pts = walk(1, 1..=10, 0.0, 3.0);
         pts.extend((13..=25).map(|f| point(f, 2, 3.0 * f64::from(f), 100.0, 30.0)));
         let mut out = frames(&pts, 25);
-        assert_eq!(link(&cfg, &mut out)?, 0);
+        assert_eq!(link(&cfg, &Colours::new(), &mut out)?, 0);
         Ok(())
     }
 
@@ -484,7 +587,7 @@ mod tests {
         pts.extend(walk(3, 12..=20, 30.0, 3.0));
         pts.extend(walk(4, 12..=20, 90.0, -3.0));
         let mut out = frames(&pts, 20);
-        assert_eq!(link(&LinkConfig::recommended(), &mut out)?, 2);
+        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 2);
         for f in 12..=20 {
             let ps = &out[f as usize - 1].points;
             let right = ps.iter().find(|p| p.id == 1).expect("track 1 goes on");
@@ -501,13 +604,79 @@ mod tests {
         pts.extend(walk(9, 9..=20, 0.5, 2.0)); // starts two frames before 5 ends
         pts.extend(walk(7, 24..=30, 0.0, 2.0)); // then a 3-frame gap
         let mut out = frames(&pts, 30);
-        assert_eq!(link(&LinkConfig::recommended(), &mut out)?, 2);
+        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 2);
         for f in 1..=30 {
             assert_eq!(ids_at(&out, f), vec![5], "frame {f}");
         }
         // Frames 9 and 10 hold the new track's points, not the old one's.
         assert_eq!(out[8].points[0].bbox.centre().x, 18.5);
         Ok(())
+    }
+
+    #[test]
+    fn colour_joins_what_motion_alone_would_swap() -> Result<()> {
+        // Two people stand 4 px apart (1 red, 2 blue); both tracks break and restart on
+        // the other's side (3 red at 54, 4 blue at 50). Motion alone joins each to the
+        // nearer start (1 → 4, 2 → 3); colour joins red to red and blue to blue.
+        let still = |id, frames: std::ops::RangeInclusive<u32>, x| walk(id, frames, x, 0.0);
+        let mut pts = still(1, 1..=10, 50.0);
+        pts.extend(still(2, 1..=10, 54.0));
+        pts.extend(still(3, 13..=20, 54.0));
+        pts.extend(still(4, 13..=20, 50.0));
+        let red = [200.0, 30.0, 30.0];
+        let blue = [30.0, 30.0, 200.0];
+        let colours: Colours = pts
+            .iter()
+            .map(|p| ((p.id, p.frame), if p.id % 2 == 1 { red } else { blue }))
+            .collect();
+        let by_motion = |out: &[FramePoints]| -> Vec<(u64, f64)> {
+            out[14]
+                .points
+                .iter()
+                .map(|p| (p.id, p.bbox.centre().x))
+                .collect()
+        };
+        let mut out = frames(&pts, 20);
+        assert_eq!(link(&LinkConfig::recommended(), &colours, &mut out)?, 2);
+        assert_eq!(by_motion(&out), vec![(1, 50.0), (2, 54.0)]);
+        let cfg = LinkConfig {
+            colour_gate: 60.0,
+            ..LinkConfig::recommended()
+        };
+        let mut out = frames(&pts, 20);
+        assert_eq!(link(&cfg, &colours, &mut out)?, 2);
+        assert_eq!(by_motion(&out), vec![(1, 54.0), (2, 50.0)]);
+        // A colour change beyond the gate is never joined, however good the motion.
+        let mut pts = walk(1, 1..=10, 0.0, 3.0);
+        pts.extend(walk(2, 14..=20, 0.0, 3.0));
+        let colours: Colours = pts
+            .iter()
+            .map(|p| ((p.id, p.frame), if p.id == 1 { red } else { blue }))
+            .collect();
+        let mut out = frames(&pts, 20);
+        assert_eq!(link(&cfg, &colours, &mut out)?, 0);
+        // Unknown colours leave the join to motion.
+        let mut out = frames(&pts, 20);
+        assert_eq!(link(&cfg, &Colours::new(), &mut out)?, 1);
+        Ok(())
+    }
+
+    #[test]
+    fn centre_colour_is_the_mean_over_the_boxs_central_half_inside_the_image() {
+        // A 20 × 20 red square on grey; its box's central half is red only.
+        let mut img = image::RgbImage::from_pixel(40, 30, image::Rgb([100, 100, 100]));
+        for y in 5..25 {
+            for x in 10..30 {
+                img.put_pixel(x, y, image::Rgb([200, 10, 20]));
+            }
+        }
+        let sq = BBox::new(10.0, 5.0, 20.0, 20.0);
+        assert_eq!(centre_colour(&img, &sq), Some([200.0, 10.0, 20.0]));
+        // Half outside the image: the part inside counts (here the right-most 5 columns of
+        // the central half: x 35–39, grey).
+        let edge = BBox::new(30.0, 5.0, 20.0, 20.0);
+        assert_eq!(centre_colour(&img, &edge), Some([100.0, 100.0, 100.0]));
+        assert_eq!(centre_colour(&img, &BBox::new(50.0, 5.0, 20.0, 20.0)), None);
     }
 
     /// The best joins by brute force: most joins, then least total cost.
@@ -598,6 +767,20 @@ mod tests {
                     ..LinkConfig::recommended()
                 },
                 "velocity_frames",
+            ),
+            (
+                LinkConfig {
+                    colour_gate: -1.0,
+                    ..LinkConfig::recommended()
+                },
+                "colour_gate",
+            ),
+            (
+                LinkConfig {
+                    colour_weight: f64::INFINITY,
+                    ..LinkConfig::recommended()
+                },
+                "colour_weight",
             ),
         ] {
             let e = GapLinkStage::new(cfg).expect_err("invalid").to_string();

@@ -38,6 +38,17 @@ pub trait PointStage {
     /// # Errors
     /// As [`PointStage::push`].
     fn finish(&mut self) -> Result<Vec<FramePoints>>;
+
+    /// Whether the stage looks at the frames' images ([`PointStage::see_image`]).
+    fn wants_images(&self) -> bool {
+        false
+    }
+
+    /// Called just before [`PointStage::push`] with that frame's image, when the stage
+    /// [wants images](PointStage::wants_images). The pipeline keeps an image only until
+    /// the last stage that wants it has seen it (or a sink has drawn it), so a stage that
+    /// holds points does not make the pipeline hold frames.
+    fn see_image(&mut self, _points: &FramePoints, _image: &Frame) {}
 }
 
 /// Where final track points go: one call per frame, in frame order, points sorted by id.
@@ -126,7 +137,8 @@ impl<'a> Pipeline<'a> {
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<RunSummary> {
         let mut waiting = Waiting {
-            keep_images: self.sinks.iter().any(|s| s.wants_images()),
+            keep_images: self.sinks.iter().any(|s| s.wants_images())
+                || self.stages.iter().any(|s| s.wants_images()),
             frames: VecDeque::new(),
         };
         let mut summary = RunSummary::default();
@@ -213,9 +225,22 @@ impl<'a> Pipeline<'a> {
                 f.points.sort_by_key(|p| p.id);
             }
         }
-        for stage in &mut self.stages[first..] {
+        let sinks_draw = self.sinks.iter().any(|s| s.wants_images());
+        let last_looking = self.stages.iter().rposition(|s| s.wants_images());
+        for (i, stage) in self.stages.iter_mut().enumerate().skip(first) {
             let mut next = Vec::new();
             for f in batch {
+                if stage.wants_images() {
+                    // Frames wait in read order, so the deque is sorted by index.
+                    if let Ok(k) = waiting.frames.binary_search_by_key(&f.frame, |(j, _)| *j) {
+                        if let Some(image) = &waiting.frames[k].1 {
+                            stage.see_image(&f, image);
+                        }
+                        if Some(i) == last_looking && !sinks_draw {
+                            waiting.frames[k].1 = None;
+                        }
+                    }
+                }
                 next.extend(stage.push(f)?);
             }
             batch = next;
@@ -479,6 +504,74 @@ mod tests {
         assert_eq!(order, vec![1, 2, 3, 4, 5, 6]);
         assert!(seen.0.iter().all(|s| s.1 == vec![2, 9] && s.2));
         assert_eq!(all.len(), 12);
+        Ok(())
+    }
+
+    /// A stage that holds every frame to the end and records the images it was shown.
+    #[derive(Default)]
+    struct Looking {
+        held: Vec<FramePoints>,
+        saw: Vec<u32>,
+    }
+
+    impl PointStage for &mut Looking {
+        fn push(&mut self, frame: FramePoints) -> Result<Vec<FramePoints>> {
+            self.held.push(frame);
+            Ok(Vec::new())
+        }
+
+        fn finish(&mut self) -> Result<Vec<FramePoints>> {
+            Ok(std::mem::take(&mut self.held))
+        }
+
+        fn wants_images(&self) -> bool {
+            true
+        }
+
+        fn see_image(&mut self, points: &FramePoints, image: &Frame) {
+            assert_eq!(points.frame, image.index);
+            self.saw.push(image.index);
+        }
+    }
+
+    /// Records whether each frame came with its image.
+    #[derive(Default)]
+    struct Blind(Vec<bool>, bool);
+
+    impl PointSink for &mut Blind {
+        fn write_frame(&mut self, _p: &FramePoints, image: Option<&Frame>) -> Result<()> {
+            self.0.push(image.is_some());
+            Ok(())
+        }
+
+        fn finish(&mut self) -> Result<()> {
+            Ok(())
+        }
+
+        fn wants_images(&self) -> bool {
+            self.1
+        }
+    }
+
+    #[test]
+    fn a_stage_sees_each_image_once_and_the_pipeline_keeps_it_only_for_a_sink_that_draws()
+    -> Result<()> {
+        for sink_draws in [false, true] {
+            let mut stage = Looking::default();
+            let mut sink = Blind(Vec::new(), sink_draws);
+            let mut p = Pipeline::new(Box::new(Delayed {
+                delay: 2,
+                held: VecDeque::new(),
+            }));
+            p.stages.push(Box::new(&mut stage));
+            p.sinks.push(Box::new(&mut sink));
+            p.run(frames(6), Some(6), &mut |_, _| {})?;
+            drop(p);
+            assert_eq!(stage.saw, vec![1, 2, 3, 4, 5, 6]);
+            // Without a drawing sink the images were dropped once the stage had seen them,
+            // although the stage held every frame to the end.
+            assert_eq!(sink.0, vec![sink_draws; 6]);
+        }
         Ok(())
     }
 
