@@ -241,6 +241,11 @@ pub struct LifecycleArgs {
     /// interpolated boxes between (0: off). Holds the whole run's points until the end.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub link_gaps: u32,
+    /// With --link-gaps: also match colours. A track's end and a start whose mean colours
+    /// (centre of the box, RGB 0–255) are more than D apart never join, and closer ones
+    /// pay for the difference. 0 leaves colour out.
+    #[arg(long, value_name = "D", default_value_t = 0.0, requires = "link_gaps")]
+    pub link_colour: f64,
 }
 
 impl LifecycleArgs {
@@ -276,11 +281,15 @@ impl LifecycleArgs {
         use roadtrack::track::link::LinkConfig;
         let config = LinkConfig {
             max_gap_frames: self.link_gaps,
+            colour_gate: self.link_colour,
             ..LinkConfig::recommended()
         };
         crate::flags::check_overrides(
             config.validate(),
-            &[("max_gap_frames/max_overlap_frames", "--link-gaps", true)],
+            &[
+                ("max_gap_frames/max_overlap_frames", "--link-gaps", true),
+                ("colour_gate", "--link-colour", true),
+            ],
             None,
         )?;
         Ok(config)
@@ -297,6 +306,12 @@ pub struct DetectorArgs {
     /// (.csv); default: det/det.txt of the sequence folder given as input.
     #[arg(long, value_name = "F")]
     pub detections: Option<std::path::PathBuf>,
+    /// Keep only the boxes of --detector cnn, onnx or file whose pixels are at least this
+    /// fraction foreground for a background model learnt from the input (0–1, e.g. 0.2):
+    /// drops static clutter on a fixed camera (posts, windows), and with it objects that
+    /// never move. Off by default.
+    #[arg(long, value_name = "FRACTION")]
+    pub motion_gate: Option<f64>,
     #[command(flatten)]
     pub onnx: crate::onnx_detector::OnnxArgs,
 }
@@ -327,8 +342,44 @@ impl DetectorArgs {
             (Some(k), _) => k,
             (None, None) => {
                 reject_onnx_flags(&self.onnx)?;
+                if self.motion_gate.is_some() {
+                    return Err(crate::flags::conflict(
+                        "--motion-gate needs --detector cnn, onnx or file",
+                    ));
+                }
                 return Ok(None);
             }
+        };
+        // Checked before any model is opened, so a bad value is a usage error first.
+        let gate = match self.motion_gate {
+            Some(fraction) => {
+                let gate = roadtrack::detect::motion_gate::MotionGateConfig {
+                    min_foreground_fraction: fraction,
+                };
+                crate::flags::check_overrides(
+                    gate.validate(),
+                    &[("min_foreground_fraction", "--motion-gate", true)],
+                    None,
+                )?;
+                Some(gate)
+            }
+            None => None,
+        };
+        if kind == DetectorArg::Background && self.motion_gate.is_some() {
+            return Err(crate::flags::conflict(
+                "--motion-gate needs --detector cnn, onnx or file, not --detector background",
+            ));
+        }
+        let mut background = Some(background);
+        let mut background_config = || {
+            background.take().map_or_else(
+                || {
+                    Err(anyhow::anyhow!(
+                        "internal error: background config asked twice"
+                    ))
+                },
+                |f| f(),
+            )
         };
         if kind == DetectorArg::Cnn {
             crate::flags::reject_given(
@@ -338,14 +389,14 @@ impl DetectorArgs {
         } else if kind != DetectorArg::Onnx {
             reject_onnx_flags(&self.onnx)?;
         }
-        Ok(Some(match kind {
+        let spec = match kind {
             DetectorArg::Background => {
                 if self.detections.is_some() {
                     return Err(crate::flags::conflict(
                         "--detections needs --detector file, not --detector background",
                     ));
                 }
-                DetectorSpec::Background(background()?)
+                DetectorSpec::Background(background_config()?)
             }
             DetectorArg::File => {
                 let path = match &self.detections {
@@ -377,7 +428,15 @@ impl DetectorArgs {
                 }
                 self.onnx.cnn_spec()?
             }
-        }))
+        };
+        let Some(gate) = gate else {
+            return Ok(Some(spec));
+        };
+        Ok(Some(DetectorSpec::MotionGated(
+            Box::new(spec),
+            background_config()?,
+            gate,
+        )))
     }
 }
 

@@ -97,6 +97,41 @@ fn detect_with_the_shipped_model_writes_classified_boxes() {
     }
 }
 
+/// `--motion-gate`: the same boxes, less those on static background (a box on the tiny
+/// sequence's moving square survives, the others are a subset of the ungated run's).
+#[test]
+fn motion_gate_keeps_a_subset_of_the_boxes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |gate: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let o = bin()
+            .arg("detect")
+            .arg(fixture("tiny_sequence"))
+            .args(["--detector", "cnn", "--model"])
+            .arg(shipped_model())
+            .args(["--min-score", "0.05"])
+            .args(gate)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        roadtrack::io::detections::read_detections(&out).expect("read output")
+    };
+    let all = run(&[], "all.csv");
+    let gated = run(&["--motion-gate", "0.2"], "gated.csv");
+    assert!(gated.len() < all.len(), "{} of {}", gated.len(), all.len());
+    for d in &gated {
+        assert!(
+            all.iter().any(|a| a.frame == d.frame
+                && a.pos_px == d.pos_px
+                && a.size_px == d.size_px
+                && a.class == d.class),
+            "{d:?} not among the ungated boxes"
+        );
+    }
+}
+
 #[cfg(feature = "learn")]
 #[test]
 fn train_detector_writes_a_loadable_model_and_a_loss_log() {

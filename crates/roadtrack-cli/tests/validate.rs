@@ -285,6 +285,22 @@ fn flags_of_another_method_or_mode_are_usage_errors() {
             vec!["detect", seq, "--detector", "file", "--min-area", "5"],
             "--min-area",
         ),
+        (vec!["detect", seq, "--motion-gate", "0.2"], "--motion-gate"),
+        (
+            vec![
+                "detect",
+                seq,
+                "--detector",
+                "background",
+                "--motion-gate",
+                "0.2",
+            ],
+            "--motion-gate",
+        ),
+        (
+            vec!["track", seq, "--method", "phd", "--link-colour", "50"],
+            "--link-gaps",
+        ),
         (
             vec!["detect", seq, "--detections", "x.txt", "--masks", "m"],
             "--masks",
@@ -465,6 +481,22 @@ fn flag_values_checked_after_parsing_name_the_flag_and_exit_2() {
     let seq = s(&seq);
     for (args, flag) in [
         (vec!["detect", seq, "--start", "5", "--end", "3"], "--end"),
+        (
+            vec!["detect", seq, "--detector", "cnn", "--motion-gate", "1.5"],
+            "--motion-gate",
+        ),
+        (
+            vec![
+                "track",
+                seq,
+                "--method",
+                "phd",
+                "--link-gaps",
+                "5",
+                "--link-colour=-1",
+            ],
+            "--link-colour",
+        ),
         (
             vec!["detect", seq, "--min-area", "900", "--max-area", "100"],
             "--min-area",

@@ -11,6 +11,7 @@ pub mod background_model;
 pub mod centernet;
 pub mod columns;
 pub mod file;
+pub mod motion_gate;
 pub mod regions;
 pub mod split;
 pub mod startup;
@@ -119,6 +120,18 @@ impl<F: FnMut(&Frame) -> Result<FrameDetections>> Detector for F {
     }
 }
 
+/// A background detector with `cfg`, its model learnt by a first, read-only pass over
+/// `input`.
+fn background_on(
+    cfg: background::BackgroundDetectorConfig,
+    input: &std::path::Path,
+    options: &crate::io::SourceOptions,
+) -> Result<background::BackgroundDetector> {
+    cfg.validate()?;
+    let model = background_model::bootstrap_from_source(input, options, cfg.background.clone())?;
+    background::BackgroundDetector::with_model(cfg, model)
+}
+
 /// Which detector a run uses (`--detector`).
 pub enum DetectorSpec {
     /// Background subtraction with this config, its model learnt by a first pass over the
@@ -128,6 +141,13 @@ pub enum DetectorSpec {
     File(PathBuf),
     /// A detector made elsewhere (the networks of `roadtrack-cnn`).
     Given(Box<dyn Detector>),
+    /// Another detector's boxes kept only where a background detector with this config
+    /// sees motion ([`motion_gate::MotionGated`]).
+    MotionGated(
+        Box<DetectorSpec>,
+        background::BackgroundDetectorConfig,
+        motion_gate::MotionGateConfig,
+    ),
 }
 
 impl std::fmt::Debug for DetectorSpec {
@@ -136,6 +156,12 @@ impl std::fmt::Debug for DetectorSpec {
             DetectorSpec::Background(c) => f.debug_tuple("Background").field(c).finish(),
             DetectorSpec::File(p) => f.debug_tuple("File").field(p).finish(),
             DetectorSpec::Given(_) => f.write_str("Given(..)"),
+            DetectorSpec::MotionGated(inner, c, g) => f
+                .debug_tuple("MotionGated")
+                .field(inner)
+                .field(c)
+                .field(g)
+                .finish(),
         }
     }
 }
@@ -154,19 +180,17 @@ impl DetectorSpec {
         info: &crate::io::SourceInfo,
     ) -> Result<Box<dyn Detector>> {
         Ok(match self {
-            DetectorSpec::Background(cfg) => {
-                cfg.validate()?;
-                let model = background_model::bootstrap_from_source(
-                    input,
-                    options,
-                    cfg.background.clone(),
-                )?;
-                Box::new(background::BackgroundDetector::with_model(cfg, model)?)
-            }
+            DetectorSpec::Background(cfg) => Box::new(background_on(cfg, input, options)?),
             DetectorSpec::File(path) => {
                 Box::new(file::FileDetector::open(&path, info.total_frames)?)
             }
             DetectorSpec::Given(d) => d,
+            DetectorSpec::MotionGated(inner, cfg, gate) => {
+                gate.validate()?;
+                let inner = inner.build(input, options, info)?;
+                let bg = background_on(cfg, input, options)?;
+                Box::new(motion_gate::MotionGated::new(inner, bg, gate)?)
+            }
         })
     }
 }

@@ -541,7 +541,10 @@ mod tests {
         let mut pts = walk(1, 1..=10, 0.0, 3.0);
         pts.extend(walk(2, 14..=20, 0.0, 3.0));
         let mut out = frames(&pts, 20);
-        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 1);
+        assert_eq!(
+            link(&LinkConfig::recommended(), &Colours::new(), &mut out)?,
+            1
+        );
         for f in 1..=20 {
             assert_eq!(ids_at(&out, f), vec![1], "frame {f}");
             let c = out[f as usize - 1].points[0].bbox.centre();
@@ -587,7 +590,10 @@ mod tests {
         pts.extend(walk(3, 12..=20, 30.0, 3.0));
         pts.extend(walk(4, 12..=20, 90.0, -3.0));
         let mut out = frames(&pts, 20);
-        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 2);
+        assert_eq!(
+            link(&LinkConfig::recommended(), &Colours::new(), &mut out)?,
+            2
+        );
         for f in 12..=20 {
             let ps = &out[f as usize - 1].points;
             let right = ps.iter().find(|p| p.id == 1).expect("track 1 goes on");
@@ -604,7 +610,10 @@ mod tests {
         pts.extend(walk(9, 9..=20, 0.5, 2.0)); // starts two frames before 5 ends
         pts.extend(walk(7, 24..=30, 0.0, 2.0)); // then a 3-frame gap
         let mut out = frames(&pts, 30);
-        assert_eq!(link(&LinkConfig::recommended(), &Colours::new(), &mut out)?, 2);
+        assert_eq!(
+            link(&LinkConfig::recommended(), &Colours::new(), &mut out)?,
+            2
+        );
         for f in 1..=30 {
             assert_eq!(ids_at(&out, f), vec![5], "frame {f}");
         }

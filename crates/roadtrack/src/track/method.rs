@@ -261,7 +261,10 @@ impl MethodConfig {
         if let (MethodConfig::Filter { config, .. }, Some(spec)) = (&self, &detector)
             && config.measurements.uses_image()
             && config.likelihood.kind != LikelihoodKind::Colour
-            && !matches!(spec, DetectorSpec::Background(_))
+            && !matches!(
+                spec,
+                DetectorSpec::Background(_) | DetectorSpec::MotionGated(..)
+            )
         {
             return Err(Error::Invalid(format!(
                 "the {:?} likelihood reads the background detector's foreground mask; \
@@ -296,6 +299,7 @@ impl MethodConfig {
                 Some(Box::new(FileDetector::open(&path, info.total_frames)?))
             }
             Some(DetectorSpec::Given(d)) => Some(d),
+            Some(gated @ DetectorSpec::MotionGated(..)) => Some(gated.build(input, options, info)?),
         };
         Ok(match self {
             MethodConfig::Relaxation { tracker, .. } => Built {
