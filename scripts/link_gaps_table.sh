@@ -6,12 +6,21 @@
 # (docs/TRACKING.md "Gap closing"). Not part of the tests; about 15 min on 2 cores.
 #
 #   scripts/link_gaps_table.sh [GAP]        # default 10
+#   scripts/link_gaps_table.sh GAP COLOUR   # --link-gaps GAP against the same with
+#                                           # --link-colour COLOUR (docs/TRACKING.md)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/roadtrack-target}"
 cargo build -q --release -p roadtrack-cli
 rt="$CARGO_TARGET_DIR/release/roadtrack"
 gap="${1:-10}"
+colour="${2:-}"
+# The two settings compared: labels "0" (before) and "$gap" (after).
+with() { # label → flags
+  if [ -z "$colour" ]; then echo --link-gaps "$1"
+  elif [ "$1" = 0 ]; then echo --link-gaps "$gap"
+  else echo --link-gaps "$gap" --link-colour "$colour"; fi
+}
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 score() { # seq tracks label
@@ -31,7 +40,7 @@ for sv in road:aerial road:oblique intersection:aerial intersection:oblique cros
       esac
       for link in 0 "$gap"; do
         "$rt" -q track "$seq" --method "$method" --detector file "${cfg[@]}" \
-          --link-gaps "$link" -o "$work/t.txt"
+          $(with "$link") -o "$work/t.txt"
         score "$seq" "$work/t.txt" "$scene/$view|$method|$link" >> "$work/rows.txt"
       done
     done
@@ -40,14 +49,18 @@ for sv in road:aerial road:oblique intersection:aerial intersection:oblique cros
         for link in 0 "$gap"; do
           "$rt" -q track "$seq" --method phd --detector file \
             --config configs/filters-pedestrians.toml --seed "$fseed" \
-            --link-gaps "$link" -o "$work/t.txt"
+            $(with "$link") -o "$work/t.txt"
           score "$seq" "$work/t.txt" "filter seed $fseed|phd|$link" >> "$work/rows.txt"
         done
       done
     fi
   done
 done
-python3 - "$work/rows.txt" "$gap" <<'PY'
+after="--link-gaps $gap"
+[ -n "$colour" ] && after="--link-gaps $gap --link-colour $colour"
+before="none"
+[ -n "$colour" ] && before="--link-gaps $gap"
+python3 - "$work/rows.txt" "$gap" "$before" "$after" <<'PY'
 import sys
 from collections import defaultdict
 acc = defaultdict(list)
@@ -55,7 +68,7 @@ for line in open(sys.argv[1]):
     key, *v = line.rsplit(maxsplit=4)
     acc[tuple(key.split("|"))].append([float(x) for x in v])
 mean = {k: [sum(r[i] for r in rows) / len(rows) for i in range(4)] for k, rows in acc.items()}
-print(f"| scene | method | HOTA | IDF1 | AssA | MOTA | HOTA, --link-gaps {sys.argv[2]} | IDF1 | AssA | MOTA |")
+print(f"| scene | method | HOTA, {sys.argv[3]} | IDF1 | AssA | MOTA | HOTA, {sys.argv[4]} | IDF1 | AssA | MOTA |")
 print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for (sv, m, link), a in mean.items():
     if link != "0":
