@@ -370,17 +370,6 @@ impl DetectorArgs {
                 "--motion-gate needs --detector cnn, onnx or file, not --detector background",
             ));
         }
-        let mut background = Some(background);
-        let mut background_config = || {
-            background.take().map_or_else(
-                || {
-                    Err(anyhow::anyhow!(
-                        "internal error: background config asked twice"
-                    ))
-                },
-                |f| f(),
-            )
-        };
         if kind == DetectorArg::Cnn {
             crate::flags::reject_given(
                 &self.onnx.given_not_cnn(),
@@ -396,7 +385,8 @@ impl DetectorArgs {
                         "--detections needs --detector file, not --detector background",
                     ));
                 }
-                DetectorSpec::Background(background_config()?)
+                // Never gated (refused above), so `background` is not needed below.
+                return Ok(Some(DetectorSpec::Background(background()?)));
             }
             DetectorArg::File => {
                 let path = match &self.detections {
@@ -434,7 +424,7 @@ impl DetectorArgs {
         };
         Ok(Some(DetectorSpec::MotionGated(
             Box::new(spec),
-            background_config()?,
+            background()?,
             gate,
         )))
     }

@@ -119,16 +119,19 @@ fn line_of_frame(path: &Path, frame: u32) -> Option<usize> {
         .map(|(i, _)| i + 1)
 }
 
-/// Mean RGB of `image` inside `bbox` (clipped), `None` when the box misses the image.
-pub fn mean_colour(image: &RgbImage, bbox: &BBox) -> Option<[f64; 3]> {
-    let (w, h) = image.dimensions();
+/// The pixels `x0..x1 × y0..y1` that `bbox` touches in a `w × h` image (clipped), `None`
+/// when it misses the image.
+pub(crate) fn pixel_span(bbox: &BBox, w: u32, h: u32) -> Option<(u32, u32, u32, u32)> {
     let x0 = bbox.left.max(0.0).floor() as u32;
     let y0 = bbox.top.max(0.0).floor() as u32;
     let x1 = ((bbox.left + bbox.width).ceil().max(0.0) as u32).min(w);
     let y1 = ((bbox.top + bbox.height).ceil().max(0.0) as u32).min(h);
-    if x1 <= x0 || y1 <= y0 {
-        return None;
-    }
+    (x1 > x0 && y1 > y0).then_some((x0, x1, y0, y1))
+}
+
+/// Mean RGB of `image` inside `bbox` (clipped), `None` when the box misses the image.
+pub fn mean_colour(image: &RgbImage, bbox: &BBox) -> Option<[f64; 3]> {
+    let (x0, x1, y0, y1) = pixel_span(bbox, image.width(), image.height())?;
     let mut sum = [0u64; 3];
     for y in y0..y1 {
         for x in x0..x1 {

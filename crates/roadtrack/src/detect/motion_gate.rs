@@ -13,6 +13,7 @@ use super::background::BackgroundDetector;
 use super::{Detector, FrameDetections};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::geometry::BBox;
 use image::GrayImage;
 
 /// Parameters of [`MotionGated`].
@@ -49,17 +50,12 @@ impl MotionGateConfig {
     }
 }
 
-/// Fraction of the pixels of the box centred at `(cx, cy)`, `w × h` px, that are set in
-/// `mask` (the box clipped to the image; 0 when nothing of it is inside).
-pub fn foreground_fraction(mask: &GrayImage, cx: f64, cy: f64, w: f64, h: f64) -> f64 {
-    let (mw, mh) = (f64::from(mask.width()), f64::from(mask.height()));
-    let x0 = (cx - w / 2.0).floor().clamp(0.0, mw) as u32;
-    let x1 = (cx + w / 2.0).ceil().clamp(0.0, mw) as u32;
-    let y0 = (cy - h / 2.0).floor().clamp(0.0, mh) as u32;
-    let y1 = (cy + h / 2.0).ceil().clamp(0.0, mh) as u32;
-    if x0 >= x1 || y0 >= y1 {
+/// Fraction of the pixels of `bbox` (clipped to the image) that are set in `mask`; 0 when
+/// nothing of it is inside.
+pub fn foreground_fraction(mask: &GrayImage, bbox: &BBox) -> f64 {
+    let Some((x0, x1, y0, y1)) = super::file::pixel_span(bbox, mask.width(), mask.height()) else {
         return 0.0;
-    }
+    };
     let width = mask.width() as usize;
     let raw = mask.as_raw();
     let set: usize = (y0..y1)
@@ -116,7 +112,7 @@ impl MotionGated {
             .filter(|d| {
                 // Choice: a detection without a box is judged on a 1-pixel box at its centre.
                 let (w, h) = d.size_px.unwrap_or((1.0, 1.0));
-                foreground_fraction(&mask, d.pos_px.x, d.pos_px.y, w, h)
+                foreground_fraction(&mask, &BBox::from_centre(d.pos_px, w, h))
                     >= self.config.min_foreground_fraction
             })
             .collect();
@@ -170,10 +166,11 @@ mod tests {
             }
         }
         // Box x 0..10, y 0..10: half of it set.
-        assert_eq!(foreground_fraction(&mask, 5.0, 5.0, 10.0, 10.0), 0.5);
+        let at = |x, y, w, h| BBox::from_centre(Point::new(x, y), w, h);
+        assert_eq!(foreground_fraction(&mask, &at(5.0, 5.0, 10.0, 10.0)), 0.5);
         // Half outside on the left: only x 0..5 inside, all set.
-        assert_eq!(foreground_fraction(&mask, 0.0, 5.0, 10.0, 10.0), 1.0);
-        assert_eq!(foreground_fraction(&mask, 40.0, 5.0, 4.0, 4.0), 0.0);
+        assert_eq!(foreground_fraction(&mask, &at(0.0, 5.0, 10.0, 10.0)), 1.0);
+        assert_eq!(foreground_fraction(&mask, &at(40.0, 5.0, 4.0, 4.0)), 0.0);
     }
 
     /// A detector that reports two boxes per frame: one on a moving rectangle and one on

@@ -155,30 +155,15 @@ fn velocity(points: &[TrackPoint], n: usize, from_start: bool) -> (f64, f64) {
 /// Mean colour of each point, by (id, frame); points without one are absent.
 pub type Colours = BTreeMap<(u64, u32), [f64; 3]>;
 
-/// Mean colour of `image` over the central half of `bbox` (clipped to the image; at least
-/// one pixel), or `None` when that is empty.
+/// Mean colour of `image` over the central half of `bbox` (width and height halved, at
+/// least one pixel; clipped to the image), or `None` when that is empty.
 pub fn centre_colour(image: &image::RgbImage, bbox: &crate::geometry::BBox) -> Option<[f64; 3]> {
-    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
-    let c = bbox.centre();
-    let (hw, hh) = ((bbox.width / 4.0).max(0.5), (bbox.height / 4.0).max(0.5));
-    let x0 = (c.x - hw).floor().clamp(0.0, w) as u32;
-    let x1 = (c.x + hw).ceil().clamp(0.0, w) as u32;
-    let y0 = (c.y - hh).floor().clamp(0.0, h) as u32;
-    let y1 = (c.y + hh).ceil().clamp(0.0, h) as u32;
-    if x0 >= x1 || y0 >= y1 {
-        return None;
-    }
-    let mut sum = [0u64; 3];
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let p = image.get_pixel(x, y);
-            for (s, &v) in sum.iter_mut().zip(&p.0) {
-                *s += u64::from(v);
-            }
-        }
-    }
-    let n = f64::from((x1 - x0) * (y1 - y0));
-    Some(sum.map(|s| s as f64 / n))
+    let half = crate::geometry::BBox::from_centre(
+        bbox.centre(),
+        (bbox.width / 2.0).max(1.0),
+        (bbox.height / 2.0).max(1.0),
+    );
+    crate::detect::file::mean_colour(image, &half)
 }
 
 /// Mean of the known colours of `points` (`None` when none is known).
