@@ -121,6 +121,15 @@ pub struct DetectionLikelihoodConfig {
     // HOTA 0.677 → 0.685 (defaults), 0.674 → 0.689 (filters-pedestrians.toml; 0.2 and
     // 0.8 gave 0.688 and 0.684), intersection 0.663 → 0.670 (docs/EXPERIMENTS.md).
     pub birth_claim_below: f64,
+    /// PHD with `label_association = "exclusive"`: occlusion-aware `p_D`. A label whose
+    /// predicted box (its last matched detection's size) is a fraction `v` visible behind
+    /// the boxes of labels in front of it (lower bottom edge, existence ≥ 0.5) is detected
+    /// with `p_D · min(1, v / occlusion_full_visibility)`, so a person walking behind
+    /// another keeps their label through the misses. In [0, 1]; 0 (default) keeps the
+    /// paper's single `p_D`.
+    // Choice: off by default (the paper's model); configs/filters-pedestrians.toml sets it
+    // where people occlude each other (docs/EXPERIMENTS.md "Occlusion-aware p_D").
+    pub occlusion_full_visibility: f64,
 }
 
 impl Default for DetectionLikelihoodConfig {
@@ -137,6 +146,7 @@ impl Default for DetectionLikelihoodConfig {
             label_update: LabelUpdate::Bernoulli,
             label_association: LabelAssociation::Exclusive,
             birth_claim_below: 0.5,
+            occlusion_full_visibility: 0.0,
         }
     }
 }
@@ -171,6 +181,23 @@ impl DetectionLikelihoodConfig {
                 c,
                 "birth_claim_below",
                 format!("must be in [0, 1], got {}", self.birth_claim_below),
+            ));
+        }
+        if !(self.occlusion_full_visibility >= 0.0 && self.occlusion_full_visibility <= 1.0) {
+            return Err(Error::config(
+                c,
+                "occlusion_full_visibility",
+                format!("must be in [0, 1], got {}", self.occlusion_full_visibility),
+            ));
+        }
+        if self.occlusion_full_visibility > 0.0
+            && !(self.label_update == LabelUpdate::Bernoulli
+                && self.label_association == LabelAssociation::Exclusive)
+        {
+            return Err(Error::config(
+                c,
+                "occlusion_full_visibility",
+                "needs label_update = \"bernoulli\" and label_association = \"exclusive\"",
             ));
         }
         if !(self.merge_distance_px.is_finite() && self.merge_distance_px >= 0.0) {
@@ -209,6 +236,7 @@ impl DetectionLikelihoodConfig {
             label_update: self.label_update,
             association: self.label_association,
             birth_claim_below: self.birth_claim_below,
+            occlusion_full_visibility: self.occlusion_full_visibility,
         }
     }
 

@@ -356,10 +356,19 @@ impl Runner {
                 (pts, n, tracked)
             }
             Filter::Phd(t) if cfg.measurements.uses_detections() => {
-                let z = cfg.detections.measurements(&finite(dets));
+                let dets = finite(dets);
+                let z = cfg.detections.measurements(&dets);
+                let sizes: Vec<Point> = dets
+                    .iter()
+                    .map(|d| {
+                        d.size_px
+                            .map_or(Point::default(), |(w, h)| Point::new(w, h))
+                    })
+                    .collect();
                 let pts = t.step_with_detections(
                     frame,
                     &z,
+                    &sizes,
                     &cfg.detections.phd_model(),
                     cfg.birth_particles_per_detection,
                     with_image,

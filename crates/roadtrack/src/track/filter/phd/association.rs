@@ -101,15 +101,17 @@ impl LabelledPhd {
     /// object) is its source: `Σ_ℓ p_ℓj` of [`LabelledPhd::update_detections_exclusive`]
     /// on the current particles; 1 where a label that finds the detection plausible
     /// (`ψ_ℓj ≥ 1`) is more likely missed than detected (`p_ℓ0 ≥ 0.5`: the detection may be
-    /// that label's object, seen again).
+    /// that label's object, seen again). `label_pd` as in
+    /// [`LabelledPhd::update_detections_exclusive`].
     pub fn detection_claims(
         &self,
         z: &[BoxMeasurement],
         detection_prob: f64,
         clutter_per_frame: f64,
+        label_pd: &BTreeMap<u32, f64>,
     ) -> Vec<f64> {
         let kappa = clutter_per_frame / self.region().area();
-        let e = self.exclusive(z, detection_prob, kappa, None);
+        let e = self.exclusive(z, detection_prob, kappa, None, label_pd);
         let m = z.len();
         let nl = e.slot.len();
         (0..m)
@@ -131,20 +133,13 @@ impl LabelledPhd {
         pd: f64,
         kappa: f64,
         image_h: Option<&[f64]>,
+        label_pd: &BTreeMap<u32, f64>,
     ) -> Exclusive {
         let p = &self.particles;
         let n = p.len();
         let m = z.len();
         let a = |i: usize| image_h.map_or(1.0, |h| h.get(i).copied().unwrap_or(0.0));
         let (x, y) = (&p.x, &p.y);
-        // g per particle and detection (parallel over particles, each row independent).
-        let g: Vec<f64> = (0..n)
-            .into_par_iter()
-            .flat_map_iter(|i| {
-                let ai = a(i);
-                z.iter().map(move |zj| pd * zj.density(x[i], y[i]) * ai)
-            })
-            .collect();
         let mut slot: BTreeMap<u32, usize> = BTreeMap::new();
         for &l in &p.label {
             if l != 0 {
@@ -153,6 +148,22 @@ impl LabelledPhd {
             }
         }
         let nl = slot.len();
+        // p_D per label (slot order): its own where given, else the one p_D.
+        let mut pd_slot = vec![pd; nl];
+        for (l, &s) in &slot {
+            if let Some(&v) = label_pd.get(l) {
+                pd_slot[s] = v;
+            }
+        }
+        let pd_of = |i: usize| slot.get(&p.label[i]).map_or(pd, |&s| pd_slot[s]);
+        // g per particle and detection (parallel over particles, each row independent).
+        let g: Vec<f64> = (0..n)
+            .into_par_iter()
+            .flat_map_iter(|i| {
+                let f = pd_of(i) * a(i);
+                z.iter().map(move |zj| f * zj.density(x[i], y[i]))
+            })
+            .collect();
         // Sums in particle order (deterministic): W̃_ℓ, C_ℓ,j and the unlabelled C⁰_j.
         let mut w_label = vec![0.0; nl];
         let mut c_label = vec![0.0; nl * m];
@@ -184,7 +195,7 @@ impl LabelledPhd {
             if !(wl > 0.0 && wl.is_finite()) {
                 continue;
             }
-            let r = wl.min(1.0);
+            let (r, pd) = (wl.min(1.0), pd_slot[s]);
             let miss = 1.0 - r * pd;
             r_miss[s] = if miss > 0.0 {
                 r * (1.0 - pd) / miss
@@ -227,13 +238,16 @@ impl LabelledPhd {
     /// so a detection explains one label: of two labels on one object the weaker loses
     /// its existence as at a missed detection. A label alone near its detections gets
     /// exactly [`LabelledPhd::update_detections`]'s Bernoulli update. Unlabelled (birth)
-    /// particles keep the PHD form over every particle's `C_j`. `h` as there.
+    /// particles keep the PHD form over every particle's `C_j`. `h` as there. A label in
+    /// `label_pd` has that `p_D` in place of `detection_prob` (the occlusion model,
+    /// [`super::occlusion`]); an empty map is the paper's one `p_D`.
     pub fn update_detections_exclusive(
         &mut self,
         z: &[BoxMeasurement],
         detection_prob: f64,
         clutter_per_frame: f64,
         image_h: Option<&[f64]>,
+        label_pd: &BTreeMap<u32, f64>,
     ) {
         let pd = detection_prob;
         let kappa = clutter_per_frame / self.region().area();
@@ -248,7 +262,7 @@ impl LabelledPhd {
             p_miss,
             p_assoc,
             ..
-        } = self.exclusive(z, pd, kappa, image_h);
+        } = self.exclusive(z, pd, kappa, image_h, label_pd);
         let p = &mut self.particles;
         let n = p.len();
         let h = super::detections::label_rule_scores(&p.x, &p.y, z, image_h);

@@ -50,6 +50,10 @@ pub struct DetectionModel {
     /// proposes a birth when the labels' probability of being its source
     /// ([`LabelledPhd::detection_claims`]) is below this; 0: the gate alone.
     pub birth_claim_below: f64,
+    /// With [`LabelAssociation::Exclusive`]: a label whose box is less than this fraction
+    /// visible behind the labels in front of it is detected with `p_D · v / v_full`
+    /// ([`super::occlusion`]); 0: one `p_D` for all (the paper).
+    pub occlusion_full_visibility: f64,
 }
 
 impl LabelledPhd {

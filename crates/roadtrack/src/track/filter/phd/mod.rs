@@ -20,13 +20,15 @@
 //!
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
 //! `detections.rs` (step d with detections as measurements), `association.rs` (the same
-//! with a detection explaining at most one label),
+//! with a detection explaining at most one label), `occlusion.rs` (a lower `p_D` for
+//! labels hidden behind others),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod association;
 mod config;
 mod detections;
 mod labelled;
+mod occlusion;
 #[cfg(test)]
 mod tests;
 mod tracker;
@@ -38,6 +40,7 @@ pub use detections::{BoxMeasurement, DetectionModel};
 pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;
+pub use occlusion::{LabelBox, occluded_pd, visible_fractions};
 pub use tracker::PhdTracker;
 
 use crate::error::Result;

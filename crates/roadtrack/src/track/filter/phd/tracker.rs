@@ -2,14 +2,15 @@
 
 use super::super::SurveillanceRegion;
 use super::{
-    BoxMeasurement, DetectionModel, FilterStageTimes, LabelAssociation, LabelEstimate, LabelUpdate,
-    LabelledPhd, PhdConfig,
+    BoxMeasurement, DetectionModel, FilterStageTimes, LabelAssociation, LabelBox, LabelEstimate,
+    LabelUpdate, LabelledPhd, PhdConfig, occluded_pd, visible_fractions,
 };
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::geometry::{BBox, Point};
 use crate::likelihood::Likelihood;
 use crate::track_point::TrackPoint;
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// How a [`PhdTracker`] starts.
@@ -51,6 +52,8 @@ pub struct PhdTracker {
     positions: Vec<Point>,
     h: Vec<f64>,
     grid_births: bool,
+    /// Each label's box size, from the last detection it explained (the occlusion model).
+    label_size: BTreeMap<u32, Point>,
 }
 
 impl std::fmt::Debug for PhdTracker {
@@ -81,6 +84,7 @@ impl PhdTracker {
             positions: Vec::new(),
             h: Vec::new(),
             grid_births: true,
+            label_size: BTreeMap::new(),
         })
     }
 
@@ -144,7 +148,9 @@ impl PhdTracker {
     /// ([`LabelledPhd::add_labelled_births`], `per_point` particles each) → the image
     /// likelihood when `with_image` → update → border-exit and merge rules
     /// ([`LabelledPhd::update_labels_detections`]) → estimates → resampling. Returns the
-    /// reported labels sorted by id.
+    /// reported labels sorted by id. `sizes`: each measurement's box (width, height), px,
+    /// for the occlusion model ([`DetectionModel::occlusion_full_visibility`]); empty or
+    /// non-positive where unknown.
     ///
     /// # Errors
     /// When the frame size changes or the likelihood fails.
@@ -152,6 +158,7 @@ impl PhdTracker {
         &mut self,
         frame: &Frame,
         measurements: &[BoxMeasurement],
+        sizes: &[Point],
         model: &DetectionModel,
         per_point: usize,
         with_image: bool,
@@ -188,26 +195,42 @@ impl PhdTracker {
         };
         // Births at the detections no label explains: none within `birth_gate_sigmas` of
         // the detection's σ from a label's mean after prediction.
-        let predicted: Vec<Point> = filter.all_estimates().iter().map(|e| e.pos).collect();
+        let estimates = filter.all_estimates();
+        let predicted: Vec<Point> = estimates.iter().map(|e| e.pos).collect();
+        let exclusive = model.label_update == LabelUpdate::Bernoulli
+            && model.association == LabelAssociation::Exclusive;
+        let label_pd = if exclusive && model.occlusion_full_visibility > 0.0 {
+            occlusion_pds(&estimates, &self.label_size, model)
+        } else {
+            BTreeMap::new()
+        };
         let gate2 = model.birth_gate_sigmas.powi(2);
-        let claims = if model.label_update == LabelUpdate::Bernoulli
-            && model.association == LabelAssociation::Exclusive
-            && model.birth_claim_below > 0.0
-        {
-            filter.detection_claims(measurements, model.detection_prob, model.clutter_per_frame)
+        let claims = if exclusive && model.birth_claim_below > 0.0 {
+            filter.detection_claims(
+                measurements,
+                model.detection_prob,
+                model.clutter_per_frame,
+                &label_pd,
+            )
         } else {
             Vec::new()
         };
-        let free: Vec<BoxMeasurement> = measurements
-            .iter()
-            .enumerate()
-            .filter(|&(j, m)| {
+        let free: Vec<usize> = (0..measurements.len())
+            .filter(|&j| {
+                let m = &measurements[j];
                 !predicted.iter().any(|p| mahalanobis2(m, *p) <= gate2)
                     || claims.get(j).is_some_and(|&c| c < model.birth_claim_below)
             })
-            .map(|(_, m)| *m)
             .collect();
-        filter.add_labelled_births(&free, per_point);
+        let born = filter.add_labelled_births(
+            &free.iter().map(|&j| measurements[j]).collect::<Vec<_>>(),
+            per_point,
+        );
+        for (label, &j) in born.iter().zip(&free) {
+            if let Some(&s) = sizes.get(j).filter(|s| s.x > 0.0 && s.y > 0.0) {
+                self.label_size.insert(*label, s);
+            }
+        }
         self.times.predict += t0.elapsed();
 
         let t0 = Instant::now();
@@ -238,6 +261,7 @@ impl PhdTracker {
                 model.detection_prob,
                 model.clutter_per_frame,
                 image_h,
+                &label_pd,
             );
         } else {
             filter.update_detections(
@@ -251,6 +275,14 @@ impl PhdTracker {
         self.times.update += t0.elapsed();
         let t0 = Instant::now();
         filter.update_labels_detections();
+        if model.occlusion_full_visibility > 0.0 {
+            update_sizes(
+                &mut self.label_size,
+                &filter.all_estimates(),
+                measurements,
+                sizes,
+            );
+        }
         self.times.labels += t0.elapsed();
         let t0 = Instant::now();
         let out = self.points(frame);
@@ -372,4 +404,63 @@ impl PhdTracker {
 /// Squared Mahalanobis distance of `p` from the measurement's centre.
 fn mahalanobis2(m: &BoxMeasurement, p: Point) -> f64 {
     ((p.x - m.pos.x) / m.sigma.x).powi(2) + ((p.y - m.pos.y) / m.sigma.y).powi(2)
+}
+
+/// The occlusion model's `p_D` per label ([`super::occlusion`]): the labels with a known box
+/// size at their predicted positions. Labels without a size keep the one `p_D`.
+fn occlusion_pds(
+    estimates: &[LabelEstimate],
+    sizes: &BTreeMap<u32, Point>,
+    model: &DetectionModel,
+) -> BTreeMap<u32, f64> {
+    let boxes: Vec<LabelBox> = estimates
+        .iter()
+        .filter_map(|e| {
+            sizes.get(&e.label).map(|&size| LabelBox {
+                label: e.label,
+                centre: e.pos,
+                size,
+                weight: e.weight,
+            })
+        })
+        .collect();
+    boxes
+        .iter()
+        .zip(visible_fractions(&boxes))
+        .map(|(b, v)| {
+            (
+                b.label,
+                occluded_pd(model.detection_prob, v, model.occlusion_full_visibility),
+            )
+        })
+        .collect()
+}
+
+/// Each label takes the box size of the closest measurement with a size within 3 σ of its
+/// estimate (closest first, one label per measurement,
+/// [`assign_closest`](crate::track::filter::detections::assign_closest)); labels that no
+/// longer exist are dropped.
+// Choice: a label hidden behind a neighbour keeps its last size (the neighbour's detection
+// is taken by the neighbour's nearer label first).
+fn update_sizes(
+    label_size: &mut BTreeMap<u32, Point>,
+    estimates: &[LabelEstimate],
+    measurements: &[BoxMeasurement],
+    sizes: &[Point],
+) {
+    let sized: Vec<usize> = (0..measurements.len())
+        .filter(|&j| sizes.get(j).is_some_and(|s| s.x > 0.0 && s.y > 0.0))
+        .collect();
+    let z: Vec<BoxMeasurement> = sized.iter().map(|&j| measurements[j]).collect();
+    let objects: Vec<(Point, Point)> = estimates
+        .iter()
+        .map(|e| (e.pos, Point::default()))
+        .collect();
+    let matched = crate::track::filter::detections::assign_closest(&objects, &z, 3.0);
+    for (e, k) in estimates.iter().zip(matched) {
+        if let Some(k) = k {
+            label_size.insert(e.label, sizes[sized[k]]);
+        }
+    }
+    label_size.retain(|l, _| estimates.iter().any(|e| e.label == *l));
 }
