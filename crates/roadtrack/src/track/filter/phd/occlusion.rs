@@ -5,9 +5,8 @@
 //! views) a hidden person is not detected, and with a constant `p_D` every frame behind
 //! someone takes its label's existence down as a miss would (0.1^k after k frames with
 //! `p_D` 0.9): the label dies and the person reappears under a new one. A state-dependent
-//! `p_D` (Mahler, *Statistical Multisource-Multitarget Information Fusion*, §9.2; the
-//! occlusion models of labelled RFS trackers) instead lowers `p_D` for a label whose box
-//! the labels in front of it cover, so a miss there costs it little:
+//! `p_D` (the occlusion models of labelled RFS trackers) instead lowers `p_D` for a label
+//! whose box the labels in front of it cover, so a miss there costs it little:
 //!
 //! ```text
 //! v_ℓ   = fraction of label ℓ's box not covered by the boxes of labels in front of it
@@ -16,7 +15,8 @@
 //!
 //! A label is in front of another when its box's bottom edge is lower in the image (its
 //! foot point nearer the camera on a ground-plane view). Only labels of existence ≥ 0.5
-//! occlude.
+//! occlude. Measured worse than the one `p_D` on the oblique scenes (docs/EXPERIMENTS.md
+//! "Occlusion-aware p_D"), so off by default.
 
 use crate::geometry::Point;
 
@@ -46,8 +46,8 @@ impl LabelBox {
 }
 
 /// Samples per box side for the covered fraction.
-// Choice: 16 × 16 sample points (the covered fraction to 1/256): the union of several
-// occluders needs no polygon clipping, and 30 labels cost < 0.1 ms a frame.
+// Choice: 16 × 16 sample points (the covered fraction to 1/16 per axis): the union of
+// several occluders needs no polygon clipping, and only overlapping pairs are sampled.
 const SAMPLES: usize = 16;
 
 /// Smallest weight of a label that occludes others.
