@@ -53,12 +53,22 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         .output()
         .expect("run");
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    // The pyramid flags are the learned detector's: usage errors elsewhere, and out of
-    // range a usage error naming the flag.
+    // The pyramid and zoom flags are the learned detector's: usage errors elsewhere, and
+    // out of range a usage error naming the flag.
     for args in [
         &["--detector", "onnx", "--model", "m.onnx", "--pyramid", "1"][..],
         &["--detector", "background", "--coarse-min-score", "0.3"][..],
         &["--detector", "cnn", "--pyramid", "0"][..],
+        &[
+            "--detector",
+            "onnx",
+            "--model",
+            "m.onnx",
+            "--zoom-small",
+            "12",
+        ][..],
+        &["--detector", "background", "--zoom-small", "12"][..],
+        &["--detector", "cnn", "--zoom-small", "0"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -67,11 +77,10 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             .output()
             .expect("run");
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-        let flag = if args.contains(&"--pyramid") {
-            "--pyramid"
-        } else {
-            "--coarse-min-score"
-        };
+        let flag = ["--pyramid", "--zoom-small", "--coarse-min-score"]
+            .into_iter()
+            .find(|f| args.contains(f))
+            .expect("a flag");
         assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
     }
 }

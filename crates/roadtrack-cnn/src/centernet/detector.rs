@@ -53,7 +53,25 @@ pub struct CenterNetConfig {
     /// Pyramid: a full-size vehicle detection lying at least this fraction inside a larger
     /// vehicle box of the shrunk level is dropped (a part of a large vehicle). Default 0.7.
     pub part_fraction: f64,
+    /// Zoom: when > 0, the network also runs on the frame enlarged twice (bilinear), and
+    /// its boxes whose longer side (in frame px) is below this are added where they
+    /// overlap no box of the other levels by IoU > [`ZOOM_OVERLAP_IOU`], for objects too
+    /// small for the network at full size (far vehicles of an oblique view, under 8 px).
+    /// Four times the full-size level's compute. Default 0 (off).
+    pub zoom_max_side: f64,
 }
+
+/// Zoom: a zoomed-level box overlapping a box of the other levels by more than this IoU is
+/// that object again and is not added.
+// Choice: 0.3, class-agnostic: a small box on an object the other levels found is a second
+// box on it whatever its class; adjacent far cars of 8–12 px overlap less.
+pub const ZOOM_OVERLAP_IOU: f64 = 0.3;
+
+/// Zoom: the enlargement of the zoomed level.
+// Choice: 2. A far car of 4–8 px becomes 8–16 px, the sizes the network finds at full size
+// (recall 0.76–0.83 from 16 px up on the oblique road, docs/EXPERIMENTS.md); 3 would cost
+// nine times the full-size level.
+pub const ZOOM: u32 = 2;
 
 impl Default for CenterNetConfig {
     fn default() -> Self {
@@ -85,6 +103,10 @@ impl Default for CenterNetConfig {
             fine_max_side: 96.0,
             coarse_min_side: 48.0,
             part_fraction: 0.7,
+            // Choice: off. It adds recall on far-field oblique views (road oblique
+            // vehicles, seed 0) but costs precision on the aerial scenes and four times
+            // the compute (docs/DETECTION.md "Zoom").
+            zoom_max_side: 0.0,
         }
     }
 }
@@ -111,6 +133,13 @@ impl roadtrack::config::Validate for CenterNetConfig {
                 "CenterNetConfig",
                 "pyramid",
                 format!("must be 1 (off) to 8, got {}", self.pyramid),
+            ));
+        }
+        if !(self.zoom_max_side.is_finite() && self.zoom_max_side >= 0.0) {
+            return Err(Error::config(
+                "CenterNetConfig",
+                "zoom_max_side",
+                format!("must be ≥ 0 px (0 = off), got {}", self.zoom_max_side),
             ));
         }
         if !(self.min_side.is_finite() && self.min_side >= 0.0) {
@@ -389,6 +418,10 @@ impl CenterNetDetector {
                 out.push(c);
             }
         }
+        if self.config.zoom_max_side > 0.0 && out.len() < self.config.max_detections {
+            let zoomed = self.zoom_candidates(image)?;
+            add_zoomed(&mut out, zoomed, &self.config);
+        }
         let (w, h) = (f64::from(image.width()), f64::from(image.height()));
         Ok(out
             .into_iter()
@@ -424,6 +457,35 @@ impl CenterNetDetector {
         let small = shrink(image, k);
         let coarse = decode_peaks(&self.heat_maps(&small)?, cfg.coarse_min_score);
         Ok(merge_levels(fine, coarse, k, cfg))
+    }
+
+    /// Heat-map peaks of the frame enlarged [`ZOOM`] times (bilinear), in frame px, from
+    /// [`CenterNetConfig::min_side`] up to below [`CenterNetConfig::zoom_max_side`],
+    /// class-wise NMS at [`CenterNetConfig::iou_threshold`]; best first.
+    fn zoom_candidates(&self, image: &RgbImage) -> Result<Vec<Candidate>> {
+        let cfg = &self.config;
+        let big = image::imageops::resize(
+            image,
+            image.width() * ZOOM,
+            image.height() * ZOOM,
+            image::imageops::FilterType::Triangle,
+        );
+        let z = f64::from(ZOOM);
+        let cands: Vec<Candidate> = decode_peaks(&self.heat_maps(&big)?, cfg.min_score)
+            .into_iter()
+            .map(|c| Candidate {
+                cx: c.cx / z,
+                cy: c.cy / z,
+                w: c.w / z,
+                h: c.h / z,
+                ..c
+            })
+            .filter(|c| {
+                let side = c.w.max(c.h);
+                side >= cfg.min_side && side < cfg.zoom_max_side
+            })
+            .collect();
+        Ok(nms(cands, cfg.iou_threshold, usize::MAX))
     }
 
     /// The heat map of `channels` (their maximum per cell) as a score map: cell `(r, c)`
@@ -493,6 +555,20 @@ pub fn merge_levels(
         .collect();
     out.extend(coarse);
     out
+}
+
+/// Adds `zoomed` (best first) to `kept` (the other levels' boxes after NMS), each unless
+/// it overlaps a box already there by IoU > [`ZOOM_OVERLAP_IOU`], whatever the class, up
+/// to [`CenterNetConfig::max_detections`].
+pub fn add_zoomed(kept: &mut Vec<Candidate>, zoomed: Vec<Candidate>, cfg: &CenterNetConfig) {
+    for c in zoomed {
+        if kept.len() >= cfg.max_detections {
+            break;
+        }
+        if kept.iter().all(|k| k.iou(&c) <= ZOOM_OVERLAP_IOU) {
+            kept.push(c);
+        }
+    }
 }
 
 /// The maximum of `channels` of `maps` per cell as a [`ScoreMap`].

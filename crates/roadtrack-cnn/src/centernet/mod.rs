@@ -18,8 +18,8 @@ mod detector;
 mod tests;
 
 pub use detector::{
-    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, decode_peaks, default_model_path,
-    merge_levels, score_map_of, shrink,
+    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU,
+    add_zoomed, decode_peaks, default_model_path, merge_levels, score_map_of, shrink,
 };
 
 use std::path::Path;

@@ -129,6 +129,86 @@ fn the_shipped_model_finds_the_vehicles_of_held_out_renders() -> Result<()> {
     Ok(())
 }
 
+#[test]
+fn the_zoomed_level_adds_small_far_vehicles_the_other_levels_miss() -> Result<()> {
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    // Oblique road frames of held-out seeds: most of their vehicles are far and small.
+    let cfg = SimConfig {
+        scene: SceneKind::Road,
+        view: ViewKind::Oblique,
+        frames: 1,
+        ..SimConfig::default()
+    };
+    let plain = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?;
+    let zoomed = CenterNetDetector::load(
+        &shipped(),
+        &CenterNetConfig {
+            zoom_max_side: 12.0,
+            ..Default::default()
+        },
+    )?;
+    let (mut n_small, mut before, mut after) = (0, 0, 0);
+    for seed in [24, 25, 26] {
+        let run = roadtrack_sim::simulate_in_memory(&cfg, seed)?;
+        let image = &run.frames[0].image;
+        let a = plain.detect_boxes(image)?;
+        let b = zoomed.detect_boxes(image)?;
+        // The other levels' boxes are kept as they are, first; the zoom only adds.
+        assert_eq!(&b[..a.len()], &a[..]);
+        assert!(
+            b[a.len()..]
+                .iter()
+                .all(|(bb, _, _)| bb.width.max(bb.height) < 12.0)
+        );
+        let small: Vec<_> = run
+            .truth
+            .iter()
+            .filter(|t| t.visibility >= 0.5 && t.bbox.width.max(t.bbox.height) < 12.0)
+            .collect();
+        let hits = |boxes: &[(
+            roadtrack::geometry::BBox,
+            roadtrack::class::ObjectClass,
+            f64,
+        )]| {
+            small
+                .iter()
+                .filter(|t| boxes.iter().any(|(bb, _, _)| iou(bb, &t.bbox) >= 0.5))
+                .count()
+        };
+        n_small += small.len();
+        before += hits(&a);
+        after += hits(&b);
+    }
+    eprintln!("small vehicles {n_small}: found {before} → {after}");
+    assert!(n_small >= 15, "too few small vehicles: {n_small}");
+    assert!(after >= before + 6, "found {before} → {after} of {n_small}");
+    Ok(())
+}
+
+#[test]
+fn a_zoomed_box_on_an_object_already_boxed_is_not_added() {
+    let cfg = CenterNetConfig {
+        max_detections: 3,
+        ..Default::default()
+    };
+    let mut kept = vec![cand(50.0, 50.0, 10.0, 10.0, 0, 0.9)];
+    // IoU 0.52 with the kept box (another class): the same object again.
+    let same = cand(52.0, 51.0, 8.0, 8.0, 3, 0.8);
+    let apart = cand(80.0, 50.0, 8.0, 8.0, 0, 0.7);
+    let next = cand(100.0, 50.0, 8.0, 8.0, 0, 0.6);
+    let over = cand(120.0, 50.0, 8.0, 8.0, 0, 0.5);
+    add_zoomed(&mut kept, vec![same, apart, next, over], &cfg);
+    assert_eq!(kept.len(), 3, "{kept:?}");
+    assert_eq!((kept[1].cx, kept[2].cx), (80.0, 100.0));
+    let bad = CenterNetConfig {
+        zoom_max_side: -1.0,
+        ..Default::default()
+    };
+    use roadtrack::config::Validate;
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("zoom_max_side"), "{e}");
+}
+
 /// Bounds of the shipped model's test (the committed model: 16/22 and 25/26; a blank or
 /// broken model fails them).
 const BOUND_RECALL: f64 = 0.5;
