@@ -203,7 +203,9 @@ def main():
     ap.add_argument("--views", default="aerial,oblique")
     ap.add_argument("--cnn-model", default=None)
     ap.add_argument("--cnn-args", default="",
-                    help="extra flags for the learned detector, e.g. '--pyramid 1 --min-score 0.4'")
+                    help="extra flags for the learned detector, e.g. '--pyramid 1 --min-score 0.4'; "
+                         "{seq} stands for the sequence folder, e.g. "
+                         "'--zoom-small 12 --calibration {seq}/calibration.toml'")
     ap.add_argument("--only-cnn", action="store_true",
                     help="only the learned detector's rows (no background detectors, no OpenCV)")
     a = ap.parse_args()
@@ -236,7 +238,8 @@ def main():
             if a.cnn_model:
                 out = f"{seq}/det_cnn.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, "--detector", "cnn",
-                                "--model", a.cnn_model, *a.cnn_args.split()], check=True)
+                                "--model", a.cnn_model,
+                                *a.cnn_args.replace("{seq}", seq).split()], check=True)
                 runs["learned (cnn)"] = read_ours(out)
                 groups.append((scene, view, score_groups(gt, read_ours(out, True), a.frames)))
             if not a.only_cnn:

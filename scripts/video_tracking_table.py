@@ -83,7 +83,8 @@ def main():
                 rows.append(("MOG2 + norfair (peer)", evaluate(rt, seq, t)))
                 for det in a.detectors.split(","):
                     for method, extra in methods:
-                        det_extra = a.cnn_args.split() if det == "cnn" else []
+                        det_extra = (a.cnn_args.replace("{seq}", seq).split()
+                                     if det == "cnn" else [])
                         run([rt, "-q", "track", seq, "--method", method, "--detector", det,
                              *det_extra, *extra, "--seed", "0", "-o", t])
                         rows.append((f"{method} + {det}", evaluate(rt, seq, t)))

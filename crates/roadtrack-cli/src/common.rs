@@ -330,10 +330,13 @@ impl DetectorArgs {
     }
 
     /// The detector asked for; `None` leaves the choice to the method (its own background
-    /// detector). `background` is the background detector with `config`.
+    /// detector). `background` is the background detector with `config`; `calibration`
+    /// (`--calibration`) limits the learned detector's zoom to the rows where cars are
+    /// small.
     pub fn spec(
         &self,
         input: &Path,
+        calibration: Option<&roadtrack::calibration::Calibration>,
         background: impl FnOnce() -> Result<roadtrack::detect::background::BackgroundDetectorConfig>,
     ) -> Result<Option<roadtrack::detect::DetectorSpec>> {
         use roadtrack::detect::DetectorSpec;
@@ -416,7 +419,7 @@ impl DetectorArgs {
                         "--detections needs --detector file, not --detector cnn",
                     ));
                 }
-                self.onnx.cnn_spec()?
+                self.onnx.cnn_spec(calibration)?
             }
         };
         let Some(gate) = gate else {

@@ -90,7 +90,8 @@ pub struct OnnxArgs {
     pub coarse_min_score: Option<f64>,
     /// --detector cnn: also run the network on the frame enlarged twice and add its boxes
     /// smaller than PX (frame px) that the other levels lack, for far objects under 8 px
-    /// (4× the compute) [default: off].
+    /// (4× the compute); with --calibration only the rows where a car is under PX px
+    /// [default: off].
     #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub zoom_small: Option<f64>,
 }
@@ -154,7 +155,10 @@ impl OnnxArgs {
     /// The learned detector, loaded (`--detector cnn`): --detector-model (or --model),
     /// else the shipped models/detector.onnx.
     #[cfg(feature = "cnn")]
-    pub fn cnn_spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+    pub fn cnn_spec(
+        &self,
+        calibration: Option<&roadtrack::calibration::Calibration>,
+    ) -> Result<roadtrack::detect::DetectorSpec> {
         use roadtrack_cnn::centernet::{CenterNetConfig, CenterNetDetector, default_model_path};
         let path = self
             .detector_model
@@ -184,13 +188,19 @@ impl OnnxArgs {
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
         }
-        let detector = CenterNetDetector::load(&path, &config)?;
+        let mut detector = CenterNetDetector::load(&path, &config)?;
+        if let (Some(_), Some(c)) = (self.zoom_small, calibration) {
+            detector = detector.with_zoom_calibration(c.clone());
+        }
         Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
     }
 
     /// Without the `cnn` feature there is no ONNX runtime.
     #[cfg(not(feature = "cnn"))]
-    pub fn cnn_spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
+    pub fn cnn_spec(
+        &self,
+        _calibration: Option<&roadtrack::calibration::Calibration>,
+    ) -> Result<roadtrack::detect::DetectorSpec> {
         anyhow::bail!(
             "--detector cnn needs roadtrack built with the `cnn` feature \
              (cargo build -p roadtrack-cli --features cnn)"

@@ -69,6 +69,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         ][..],
         &["--detector", "background", "--zoom-small", "12"][..],
         &["--detector", "cnn", "--zoom-small", "0"][..],
+        &["--detector", "cnn", "--calibration", "c.toml"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -77,10 +78,15 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             .output()
             .expect("run");
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-        let flag = ["--pyramid", "--zoom-small", "--coarse-min-score"]
-            .into_iter()
-            .find(|f| args.contains(f))
-            .expect("a flag");
+        let flag = [
+            "--pyramid",
+            "--zoom-small",
+            "--coarse-min-score",
+            "--calibration",
+        ]
+        .into_iter()
+        .find(|f| args.contains(f))
+        .expect("a flag");
         assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
     }
 }
@@ -138,6 +144,59 @@ fn motion_gate_keeps_a_subset_of_the_boxes() {
                 && a.class == d.class),
             "{d:?} not among the ungated boxes"
         );
+    }
+}
+
+/// `--zoom-small`: the default boxes and more; with a calibration in which no car is that
+/// small (a nadir view at 0.33 m/px: 13.6 px) nothing is enlarged and the output is the
+/// default's byte for byte.
+#[test]
+fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cal = dir.path().join("nadir.toml");
+    std::fs::write(
+        &cal,
+        "metres_per_pixel = 0.33\norigin_m = [0.0, 0.0]\nrotation_deg = 0.0\n",
+    )
+    .expect("write calibration");
+    let run = |extra: &[&std::ffi::OsStr], name: &str| {
+        let out = dir.path().join(name);
+        let o = bin()
+            .arg("detect")
+            .arg(fixture("tiny_sequence"))
+            .args(["--detector", "cnn", "--model"])
+            .arg(shipped_model())
+            .args(["--min-score", "0.05"])
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(&out).expect("read output")
+    };
+    let plain = run(&[], "plain.csv");
+    let zoom = ["--zoom-small", "12"].map(std::ffi::OsStr::new);
+    let zoomed = run(&zoom, "zoomed.csv");
+    let banded = run(
+        &[zoom[0], zoom[1], "--calibration".as_ref(), cal.as_os_str()],
+        "banded.csv",
+    );
+    assert_eq!(banded, plain);
+    // Every default box is in the zoomed output, which has more.
+    let boxes = |text: &str| -> Vec<String> {
+        text.lines()
+            .skip(1)
+            .map(|l| {
+                let c: Vec<&str> = l.split(',').collect();
+                format!("{},{}", c[0], c[2..].join(","))
+            })
+            .collect()
+    };
+    let (p, z) = (boxes(&plain), boxes(&zoomed));
+    assert!(z.len() > p.len(), "{} vs {}", z.len(), p.len());
+    for b in &p {
+        assert!(z.contains(b), "{b} not in the zoomed output");
     }
 }
 

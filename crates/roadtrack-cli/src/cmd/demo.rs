@@ -44,7 +44,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if !args.detector.is_file() {
         // Bad detector flags or an unreadable model fail before the simulation, not after.
         args.detector
-            .spec(&args.output, || Ok(Default::default()))?;
+            .spec(&args.output, None, || Ok(Default::default()))?;
     }
     let cfg = DemoConfig {
         frames: args.frames,

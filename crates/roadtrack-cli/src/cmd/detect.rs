@@ -40,7 +40,8 @@ pub struct Args {
     /// the config.
     #[arg(long, value_enum, value_name = "S")]
     pub startup: Option<Startup>,
-    /// Camera calibration TOML (as `roadtrack simulate` writes), for --split.
+    /// Camera calibration TOML (as `roadtrack simulate` writes), for --split, or for
+    /// --detector cnn --zoom-small (zoom only where cars are small).
     #[arg(long, value_name = "F.toml")]
     pub calibration: Option<PathBuf>,
     /// Split regions longer than one vehicle at their position into the vehicles they hold
@@ -78,7 +79,10 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
                 ("--threshold-sigma", args.threshold_sigma.is_some()),
                 ("--masks", args.masks.is_some()),
                 ("--startup", args.startup.is_some()),
-                ("--calibration", args.calibration.is_some()),
+                (
+                    "--calibration",
+                    args.calibration.is_some() && args.detector.onnx.zoom_small.is_none(),
+                ),
                 ("--split", args.split),
             ],
             if args.detector.is_onnx() {
@@ -135,7 +139,9 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     let bar = ui.progress(None, "background");
     let spec = args
         .detector
-        .spec(&args.input, || Ok(config.clone()))?
+        .spec(&args.input, config.calibration.as_deref(), || {
+            Ok(config.clone())
+        })?
         .unwrap_or(DetectorSpec::Background(config));
     let mut detector = spec.build(&args.input, &options, &info)?;
     bar.finish_and_clear();

@@ -110,7 +110,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             // as `roadtrack detect` without --config.
             let spec = args
                 .detector
-                .spec(&args.input, || Ok(BackgroundDetectorConfig::default()))?
+                .spec(
+                    &args.input,
+                    None,
+                    || Ok(BackgroundDetectorConfig::default()),
+                )?
                 .context("internal error: render without --tracks or --detector")?;
             (Vec::new(), Some(spec.build(&args.input, &options, &info)?))
         }

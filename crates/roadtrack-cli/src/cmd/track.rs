@@ -321,7 +321,9 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         None => method,
     };
     let own = method.background_detector();
-    let detector = args.detector.spec(&args.input, || Ok(own))?;
+    let detector = args
+        .detector
+        .spec(&args.input, calibration.as_ref(), || Ok(own))?;
     let info = source::open(&args.input, &options)?.info.clone();
     let built = method.build(&args.input, &options, &info, detector)?;
     let tracker: Box<dyn Tracker> = match (built.tracker, &args.object_maps) {

@@ -388,7 +388,7 @@ fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
     let own = config.background_detector();
     let detector = cfg
         .detector
-        .spec(sh.seq, || Ok(own))
+        .spec(sh.seq, None, || Ok(own))
         .with_context(|| format!("the detector of {name}"))?;
     let t0 = std::time::Instant::now();
     let mut points: Vec<TrackPoint> = Vec::new();

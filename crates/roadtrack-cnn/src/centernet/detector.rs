@@ -15,6 +15,7 @@ use crate::onnx::{
     metadata, model_error, preprocessing_from_metadata, read_image_model, tract_load,
 };
 use crate::window::Preprocessing;
+use roadtrack::calibration::Calibration;
 use roadtrack::class::ObjectClass;
 use roadtrack::detect::FrameDetections;
 use roadtrack::detection::Detection;
@@ -57,7 +58,9 @@ pub struct CenterNetConfig {
     /// its boxes whose longer side (in frame px) is below this are added where they
     /// overlap no box of the other levels by IoU > [`ZOOM_OVERLAP_IOU`], for objects too
     /// small for the network at full size (far vehicles of an oblique view, under 8 px).
-    /// Four times the full-size level's compute. Default 0 (off).
+    /// Four times the full-size level's compute; with a calibration
+    /// ([`CenterNetDetector::with_zoom_calibration`]) only the rows where cars are that
+    /// small are enlarged. Default 0 (off).
     pub zoom_max_side: f64,
 }
 
@@ -104,8 +107,8 @@ impl Default for CenterNetConfig {
             coarse_min_side: 48.0,
             part_fraction: 0.7,
             // Choice: off. It adds recall on far-field oblique views (road oblique
-            // vehicles, seed 0) but costs precision on the aerial scenes and four times
-            // the compute (docs/DETECTION.md "Zoom").
+            // vehicles, seed 0); without a calibration it costs precision on the aerial
+            // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
         }
     }
@@ -204,6 +207,8 @@ pub struct CenterNetDetector {
     prep: Preprocessing,
     config: CenterNetConfig,
     plans: Mutex<HashMap<(usize, usize), Arc<TypedRunnableModel>>>,
+    /// With the zoom: the camera, to enlarge only the rows where objects are small.
+    zoom_calibration: Option<Calibration>,
 }
 
 impl std::fmt::Debug for CenterNetDetector {
@@ -242,6 +247,7 @@ impl CenterNetDetector {
             prep,
             config: config.clone(),
             plans: Mutex::new(HashMap::new()),
+            zoom_calibration: None,
         };
         // Fail now on a model tract cannot run or with other outputs.
         let probe = INPUT_MULTIPLE * 2;
@@ -459,30 +465,57 @@ impl CenterNetDetector {
         Ok(merge_levels(fine, coarse, k, cfg))
     }
 
-    /// Heat-map peaks of the frame enlarged [`ZOOM`] times (bilinear), in frame px, from
+    /// With the zoom ([`CenterNetConfig::zoom_max_side`]): enlarge only the rows where a
+    /// car measures under `zoom_max_side` px through `calibration` ([`zoom_rows`]), and
+    /// none when there are no such rows (an aerial view of cars larger than that).
+    #[must_use]
+    pub fn with_zoom_calibration(mut self, calibration: Calibration) -> Self {
+        self.zoom_calibration = Some(calibration);
+        self
+    }
+
+    /// Heat-map peaks of the frame (or, with a calibration, of its [`zoom_rows`] with a
+    /// margin of `zoom_max_side` rows) enlarged [`ZOOM`] times (bilinear), in frame px, from
     /// [`CenterNetConfig::min_side`] up to below [`CenterNetConfig::zoom_max_side`],
-    /// class-wise NMS at [`CenterNetConfig::iou_threshold`]; best first.
+    /// centres inside the rows, class-wise NMS at [`CenterNetConfig::iou_threshold`]; best
+    /// first.
     fn zoom_candidates(&self, image: &RgbImage) -> Result<Vec<Candidate>> {
         let cfg = &self.config;
+        let (w, h) = image.dimensions();
+        let rows = match &self.zoom_calibration {
+            Some(cal) => match zoom_rows(cal, w, h, cfg.zoom_max_side) {
+                Some(r) => r,
+                None => return Ok(Vec::new()),
+            },
+            None => (0, h),
+        };
+        let margin = cfg.zoom_max_side.ceil() as u32;
+        let top = rows.0.saturating_sub(margin);
+        let bottom = (rows.1 + margin).min(h);
+        if bottom <= top || w == 0 {
+            return Ok(Vec::new());
+        }
+        let band = image::imageops::crop_imm(image, 0, top, w, bottom - top).to_image();
         let big = image::imageops::resize(
-            image,
-            image.width() * ZOOM,
-            image.height() * ZOOM,
+            &band,
+            w * ZOOM,
+            (bottom - top) * ZOOM,
             image::imageops::FilterType::Triangle,
         );
         let z = f64::from(ZOOM);
+        let (y0, y1) = (f64::from(rows.0), f64::from(rows.1));
         let cands: Vec<Candidate> = decode_peaks(&self.heat_maps(&big)?, cfg.min_score)
             .into_iter()
             .map(|c| Candidate {
                 cx: c.cx / z,
-                cy: c.cy / z,
+                cy: c.cy / z + f64::from(top),
                 w: c.w / z,
                 h: c.h / z,
                 ..c
             })
             .filter(|c| {
                 let side = c.w.max(c.h);
-                side >= cfg.min_side && side < cfg.zoom_max_side
+                side >= cfg.min_side && side < cfg.zoom_max_side && c.cy >= y0 && c.cy < y1
             })
             .collect();
         Ok(nms(cands, cfg.iou_threshold, usize::MAX))
@@ -555,6 +588,46 @@ pub fn merge_levels(
         .collect();
     out.extend(coarse);
     out
+}
+
+/// Length of the car the zoom looks for, m.
+// Choice: 4.5 m, a mid-size car: lorries and buses are larger and found without the zoom.
+pub const ZOOM_CAR_LENGTH_M: f64 = 4.5;
+
+/// The rows `[top, bottom)` of a `width × height` image through `calibration` in which a
+/// car of [`ZOOM_CAR_LENGTH_M`] on the ground measures under `max_px` px: per row, at the
+/// centre column, the larger of the image lengths of a step along the ground's two axes,
+/// times the car's length. `None` when no row qualifies (rows above the horizon never do).
+// Choice: ground distances only, heights ignored (a car's box is taller than its footprint
+// in an oblique view, so the band errs towards zooming); the centre column stands for the
+// row (on a flat ground plane the scale changes far more across rows than along them).
+pub fn zoom_rows(
+    calibration: &Calibration,
+    width: u32,
+    height: u32,
+    max_px: f64,
+) -> Option<(u32, u32)> {
+    let cx = f64::from(width) / 2.0;
+    let small = |y: u32| -> bool {
+        let p = Point::new(cx, f64::from(y) + 0.5);
+        let Some((gx, gy)) = calibration.ground_from_image(p) else {
+            return false;
+        };
+        let step = |dx: f64, dy: f64| {
+            calibration
+                .image_from_ground(gx + dx, gy + dy)
+                .map(|q| ((q.x - p.x).powi(2) + (q.y - p.y).powi(2)).sqrt())
+        };
+        match (step(1.0, 0.0), step(0.0, 1.0)) {
+            (Some(a), Some(b)) if a.is_finite() && b.is_finite() => {
+                ZOOM_CAR_LENGTH_M * a.max(b) < max_px
+            }
+            _ => false,
+        }
+    };
+    let first = (0..height).find(|&y| small(y))?;
+    let last = (0..height).rev().find(|&y| small(y))?;
+    Some((first, last + 1))
 }
 
 /// Adds `zoomed` (best first) to `kept` (the other levels' boxes after NMS), each unless

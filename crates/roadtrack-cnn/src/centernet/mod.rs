@@ -18,8 +18,9 @@ mod detector;
 mod tests;
 
 pub use detector::{
-    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU,
-    add_zoomed, decode_peaks, default_model_path, merge_levels, score_map_of, shrink,
+    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_CAR_LENGTH_M,
+    ZOOM_OVERLAP_IOU, add_zoomed, decode_peaks, default_model_path, merge_levels, score_map_of,
+    shrink, zoom_rows,
 };
 
 use std::path::Path;

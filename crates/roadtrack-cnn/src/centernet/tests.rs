@@ -147,12 +147,29 @@ fn the_zoomed_level_adds_small_far_vehicles_the_other_levels_miss() -> Result<()
             ..Default::default()
         },
     )?;
-    let (mut n_small, mut before, mut after) = (0, 0, 0);
+    let (mut n_small, mut before, mut after, mut banded) = (0, 0, 0, 0);
     for seed in [24, 25, 26] {
         let run = roadtrack_sim::simulate_in_memory(&cfg, seed)?;
         let image = &run.frames[0].image;
         let a = plain.detect_boxes(image)?;
         let b = zoomed.detect_boxes(image)?;
+        // With the calibration, only the far rows are enlarged: added centres lie in them.
+        let in_band = CenterNetDetector::load(
+            &shipped(),
+            &CenterNetConfig {
+                zoom_max_side: 12.0,
+                ..Default::default()
+            },
+        )?
+        .with_zoom_calibration(run.calibration.clone());
+        let c = in_band.detect_boxes(image)?;
+        assert_eq!(&c[..a.len()], &a[..]);
+        let (top, bottom) =
+            zoom_rows(&run.calibration, image.width(), image.height(), 12.0).expect("far rows");
+        assert!(c[a.len()..].iter().all(|(bb, _, _)| {
+            let y = bb.centre().y;
+            y >= f64::from(top) - 0.5 && y < f64::from(bottom) + 0.5
+        }));
         // The other levels' boxes are kept as they are, first; the zoom only adds.
         assert_eq!(&b[..a.len()], &a[..]);
         assert!(
@@ -178,10 +195,54 @@ fn the_zoomed_level_adds_small_far_vehicles_the_other_levels_miss() -> Result<()
         n_small += small.len();
         before += hits(&a);
         after += hits(&b);
+        banded += hits(&c);
     }
-    eprintln!("small vehicles {n_small}: found {before} → {after}");
+    eprintln!("small vehicles {n_small}: found {before} → {after}, {banded} in the band only");
+    assert!(
+        banded >= before + 6,
+        "band only: found {before} → {banded} of {n_small}"
+    );
     assert!(n_small >= 15, "too few small vehicles: {n_small}");
     assert!(after >= before + 6, "found {before} → {after} of {n_small}");
+    Ok(())
+}
+
+#[test]
+fn the_zoom_rows_are_where_a_car_measures_under_the_limit() -> Result<()> {
+    use roadtrack::calibration::Calibration;
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    // Nadir: a 4.5 m car is 4.5 / 0.33 = 13.6 px everywhere (no rows under 12 px) and
+    // 9 px at 0.5 m/px (every row).
+    let aerial = Calibration::from_nadir(0.33, [0.0, 0.0], 0.0)?;
+    assert_eq!(zoom_rows(&aerial, 640, 480, 12.0), None);
+    let high = Calibration::from_nadir(0.5, [0.0, 0.0], 0.0)?;
+    assert_eq!(zoom_rows(&high, 640, 480, 12.0), Some((0, 480)));
+    // Oblique: a band from just below the horizon; against the same rule evaluated
+    // naively (the car's two ground steps projected) on each side of its lower edge.
+    let cfg = SimConfig {
+        scene: SceneKind::Road,
+        view: ViewKind::Oblique,
+        frames: 1,
+        ..SimConfig::default()
+    };
+    let cal = roadtrack_sim::simulate_in_memory(&cfg, 1)?.calibration;
+    let (top, bottom) = zoom_rows(&cal, 640, 480, 12.0).expect("far rows");
+    assert!(bottom > top && bottom < 480, "{top}..{bottom}");
+    let car_px = |y: u32| {
+        let p = roadtrack::geometry::Point::new(320.0, f64::from(y) + 0.5);
+        let g = cal.ground_from_image(p).expect("below the horizon");
+        let len = |dx: f64, dy: f64| {
+            let q = cal
+                .image_from_ground(g.0 + 4.5 * dx, g.1 + 4.5 * dy)
+                .expect("in front");
+            ((q.x - p.x).powi(2) + (q.y - p.y).powi(2)).sqrt()
+        };
+        len(1.0, 0.0).max(len(0.0, 1.0))
+    };
+    // Steps of 1 m scaled by 4.5 against steps of 4.5 m: equal only to first order, so
+    // compare a few rows away from the edge.
+    assert!(car_px(bottom - 3) < 12.0, "{}", car_px(bottom - 3));
+    assert!(car_px(bottom + 3) > 12.0, "{}", car_px(bottom + 3));
     Ok(())
 }
 
