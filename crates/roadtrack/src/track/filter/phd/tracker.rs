@@ -226,9 +226,11 @@ impl PhdTracker {
             &free.iter().map(|&j| measurements[j]).collect::<Vec<_>>(),
             per_point,
         );
-        for (label, &j) in born.iter().zip(&free) {
-            if let Some(&s) = sizes.get(j).filter(|s| s.x > 0.0 && s.y > 0.0) {
-                self.label_size.insert(*label, s);
+        if model.occlusion_full_visibility > 0.0 {
+            for (label, &j) in born.iter().zip(&free) {
+                if let Some(&s) = sizes.get(j).filter(|s| s.x > 0.0 && s.y > 0.0) {
+                    self.label_size.insert(*label, s);
+                }
             }
         }
         self.times.predict += t0.elapsed();
