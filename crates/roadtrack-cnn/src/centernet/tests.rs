@@ -473,7 +473,6 @@ fn bad_pyramid_settings_are_refused_by_name() {
 
 #[test]
 fn a_batch_of_frames_gives_what_one_frame_at_a_time_gives_at_any_thread_count() -> Result<()> {
-    use roadtrack::detect::Detector;
     use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
     let cfg = SimConfig {
         scene: SceneKind::Crossing,
@@ -482,9 +481,25 @@ fn a_batch_of_frames_gives_what_one_frame_at_a_time_gives_at_any_thread_count() 
         ..SimConfig::default()
     };
     let run = roadtrack_sim::simulate_in_memory(&cfg, 23)?;
-    let mut det = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?;
-    let one_by_one: Vec<_> = run
-        .frames
+    // The default levels, and with the zoom over the whole frame.
+    for config in [
+        CenterNetConfig::default(),
+        CenterNetConfig {
+            zoom_max_side: 12.0,
+            ..Default::default()
+        },
+    ] {
+        batch_equals_one_by_one(CenterNetDetector::load(&shipped(), &config)?, &run.frames)?;
+    }
+    Ok(())
+}
+
+fn batch_equals_one_by_one(
+    mut det: CenterNetDetector,
+    frames: &[roadtrack::frame::Frame],
+) -> Result<()> {
+    use roadtrack::detect::Detector;
+    let one_by_one: Vec<_> = frames
         .iter()
         .map(|f| det.detect(f))
         .collect::<Result<_>>()?;
@@ -496,7 +511,7 @@ fn a_batch_of_frames_gives_what_one_frame_at_a_time_gives_at_any_thread_count() 
             .map_err(|e| Error::Invalid(e.to_string()))?;
         let batched = pool.install(|| -> Result<_> {
             assert_eq!(det.batch_len(), threads);
-            det.detect_batch(&run.frames)
+            det.detect_batch(frames)
         })?;
         assert_eq!(batched, one_by_one, "{threads} threads");
     }
