@@ -94,22 +94,31 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
 #[test]
 fn detect_with_the_shipped_model_writes_classified_boxes() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("d.csv");
-    let o = bin()
-        .arg("detect")
-        .arg(fixture("tiny_sequence"))
-        .args(["--detector", "cnn", "--model"])
-        .arg(shipped_model())
-        .args(["--min-score", "0.05", "-o"])
-        .arg(&out)
-        .output()
-        .expect("run");
-    assert!(o.status.success(), "{}", stderr(&o));
+    let out = detect_tiny(dir.path(), &[], "d.csv");
     let dets = roadtrack::io::detections::read_detections(&out).expect("read output");
     for d in &dets {
         assert!(d.class.is_some() && d.score.is_some() && d.colour_rgb.is_some());
         assert!(d.score.unwrap_or(0.0) >= 0.05);
     }
+}
+
+/// `roadtrack detect` on the tiny sequence with the shipped model, `--min-score 0.05` and
+/// `extra`, writing `dir/name`; panics naming stderr when it fails. Returns the output.
+fn detect_tiny(dir: &Path, extra: &[&str], name: &str) -> PathBuf {
+    let out = dir.join(name);
+    let o = bin()
+        .arg("detect")
+        .arg(fixture("tiny_sequence"))
+        .args(["--detector", "cnn", "--model"])
+        .arg(shipped_model())
+        .args(["--min-score", "0.05"])
+        .args(extra)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
 }
 
 /// `--motion-gate`: the same boxes, less those on static background (a box on the tiny
@@ -118,19 +127,7 @@ fn detect_with_the_shipped_model_writes_classified_boxes() {
 fn motion_gate_keeps_a_subset_of_the_boxes() {
     let dir = tempfile::tempdir().expect("tempdir");
     let run = |gate: &[&str], name: &str| {
-        let out = dir.path().join(name);
-        let o = bin()
-            .arg("detect")
-            .arg(fixture("tiny_sequence"))
-            .args(["--detector", "cnn", "--model"])
-            .arg(shipped_model())
-            .args(["--min-score", "0.05"])
-            .args(gate)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
+        let out = detect_tiny(dir.path(), gate, name);
         roadtrack::io::detections::read_detections(&out).expect("read output")
     };
     let all = run(&[], "all.csv");
@@ -159,29 +156,13 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
         "metres_per_pixel = 0.33\norigin_m = [0.0, 0.0]\nrotation_deg = 0.0\n",
     )
     .expect("write calibration");
-    let run = |extra: &[&std::ffi::OsStr], name: &str| {
-        let out = dir.path().join(name);
-        let o = bin()
-            .arg("detect")
-            .arg(fixture("tiny_sequence"))
-            .args(["--detector", "cnn", "--model"])
-            .arg(shipped_model())
-            .args(["--min-score", "0.05"])
-            .args(extra)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read_to_string(&out).expect("read output")
+    let run = |extra: &[&str], name: &str| {
+        std::fs::read_to_string(detect_tiny(dir.path(), extra, name)).expect("read output")
     };
     let plain = run(&[], "plain.csv");
-    let zoom = ["--zoom-small", "12"].map(std::ffi::OsStr::new);
-    let zoomed = run(&zoom, "zoomed.csv");
-    let banded = run(
-        &[zoom[0], zoom[1], "--calibration".as_ref(), cal.as_os_str()],
-        "banded.csv",
-    );
+    let zoomed = run(&["--zoom-small", "12"], "zoomed.csv");
+    let cal = cal.to_str().expect("a UTF-8 temporary path");
+    let banded = run(&["--zoom-small", "12", "--calibration", cal], "banded.csv");
     assert_eq!(banded, plain);
     // Every default box is in the zoomed output, which has more.
     let boxes = |text: &str| -> Vec<String> {

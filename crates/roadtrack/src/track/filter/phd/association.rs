@@ -155,7 +155,14 @@ impl LabelledPhd {
                 pd_slot[s] = v;
             }
         }
-        let pd_of = |i: usize| slot.get(&p.label[i]).map_or(pd, |&s| pd_slot[s]);
+        // Without per-label values (the paper's model) no lookup per particle.
+        let pd_of = |i: usize| {
+            if label_pd.is_empty() {
+                pd
+            } else {
+                slot.get(&p.label[i]).map_or(pd, |&s| pd_slot[s])
+            }
+        };
         // g per particle and detection (parallel over particles, each row independent).
         let g: Vec<f64> = (0..n)
             .into_par_iter()
