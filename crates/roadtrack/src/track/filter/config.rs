@@ -296,16 +296,3 @@ impl FilterTrackConfig {
         Ok(cfg)
     }
 }
-
-/// Per-frame summary of a run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct FrameCount {
-    /// Frame number.
-    pub frame: u32,
-    /// Expected number of objects: the PHD filter's weight sum, the PF's object count.
-    pub expected: f64,
-    /// Tracks reported in the frame.
-    pub reported: usize,
-    /// Detections in the frame.
-    pub detections: usize,
-}

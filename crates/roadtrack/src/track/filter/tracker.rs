@@ -41,6 +41,9 @@ pub struct FrameCount {
     pub frame: u32,
     /// Expected number of objects: the PHD filter's weight sum, the PF's object count.
     pub expected: f64,
+    /// The most probable number of objects ([`crate::track::filter::phd::map_cardinality`]
+    /// of the labels' weights); the PF's object count.
+    pub most_probable: usize,
     /// Tracks reported in the frame.
     pub reported: usize,
     /// Detections in the frame.
@@ -436,6 +439,13 @@ impl Runner {
             }
         };
 
+        let most_probable = match &self.filter {
+            Filter::Pf(t) => t.n_objects(),
+            Filter::Phd(t) => t.filter().map_or(0, |f| {
+                super::phd::map_cardinality(f.all_estimates().iter().map(|e| e.weight))
+            }),
+        };
+
         // Support by detections; end tracks unsupported for too long.
         let ended = self.deleter.update(frame.index, &tracked, dets);
         if !ended.is_empty() {
@@ -461,6 +471,7 @@ impl Runner {
         let count = FrameCount {
             frame: frame.index,
             expected,
+            most_probable,
             reported: points.len(),
             detections: dets.len(),
         };

@@ -25,6 +25,7 @@
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod association;
+mod cardinality;
 mod config;
 mod detections;
 mod labelled;
@@ -41,6 +42,7 @@ pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;
 pub use occlusion::{LabelBox, occluded_pd, visible_fractions};
+pub use cardinality::map_cardinality;
 pub use tracker::PhdTracker;
 
 use crate::error::Result;
