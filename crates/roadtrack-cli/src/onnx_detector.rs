@@ -94,6 +94,10 @@ pub struct OnnxArgs {
     /// [default: off].
     #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub zoom_small: Option<f64>,
+    /// --detector cnn: keep a box lying mostly inside a larger box of its group (vehicles,
+    /// pedestrians); by default it is dropped as a part of that object.
+    #[arg(long)]
+    pub keep_nested: bool,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -131,6 +135,7 @@ impl OnnxArgs {
             ("--pyramid", self.pyramid.is_some()),
             ("--coarse-min-score", self.coarse_min_score.is_some()),
             ("--zoom-small", self.zoom_small.is_some()),
+            ("--keep-nested", self.keep_nested),
         ]
     }
 
@@ -147,6 +152,7 @@ impl OnnxArgs {
                         | "--pyramid"
                         | "--coarse-min-score"
                         | "--zoom-small"
+                        | "--keep-nested"
                 )
             })
             .collect()
@@ -187,6 +193,10 @@ impl OnnxArgs {
         }
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
+        }
+        if self.keep_nested {
+            config.nested_vehicle_fraction = 0.0;
+            config.nested_pedestrian_fraction = 0.0;
         }
         let mut detector = CenterNetDetector::load(&path, &config)?;
         if let (Some(_), Some(c)) = (self.zoom_small, calibration) {
@@ -229,6 +239,7 @@ impl OnnxArgs {
                 ("--pyramid", self.pyramid.is_some()),
                 ("--coarse-min-score", self.coarse_min_score.is_some()),
                 ("--zoom-small", self.zoom_small.is_some()),
+                ("--keep-nested", self.keep_nested),
             ],
             "only with --detector cnn, not --detector onnx",
         )?;

@@ -270,6 +270,67 @@ fn a_zoomed_box_on_an_object_already_boxed_is_not_added() {
     assert!(e.contains("zoom_max_side"), "{e}");
 }
 
+#[test]
+fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
+    let cfg = CenterNetConfig::default();
+    let (car, lorry, moto, ped) = (0, 1, 2, 3);
+    let boxes = vec![
+        cand(100.0, 100.0, 40.0, 16.0, lorry, 0.5), // a lorry
+        cand(92.0, 100.0, 16.0, 12.0, car, 0.9),    // its cab as a car, all inside: dropped
+        cand(120.0, 100.0, 8.0, 6.0, moto, 0.6), // 4/8 of it inside the lorry: 0.5, kept
+        cand(100.0, 98.0, 6.0, 14.0, ped, 0.8),  // a pedestrian in front of it: kept
+        cand(300.0, 200.0, 10.0, 30.0, ped, 0.7), // a person
+        cand(300.0, 190.0, 6.0, 8.0, ped, 0.95), // their head: dropped
+        cand(306.0, 200.0, 10.0, 30.0, ped, 0.6), // a person beside them (0.4 inside): kept
+        cand(500.0, 50.0, 20.0, 10.0, car, 0.4), // two boxes of one size: both kept
+        cand(502.0, 50.0, 20.0, 10.0, car, 0.3),
+    ];
+    let kept = drop_nested(boxes.clone(), &cfg);
+    let keys = |v: &[Candidate]| -> Vec<(f64, f64)> { v.iter().map(|c| (c.cx, c.cy)).collect() };
+    assert_eq!(
+        keys(&kept),
+        vec![
+            (100.0, 100.0),
+            (120.0, 100.0),
+            (100.0, 98.0),
+            (300.0, 200.0),
+            (306.0, 200.0),
+            (500.0, 50.0),
+            (502.0, 50.0),
+        ]
+    );
+    // The order of the input does not change which boxes stay.
+    let mut reversed = boxes.clone();
+    reversed.reverse();
+    let mut back = drop_nested(reversed, &cfg);
+    back.reverse();
+    assert_eq!(keys(&back), keys(&kept));
+    // The moto's half inside counts at a fraction of 0.5.
+    let half = CenterNetConfig {
+        nested_vehicle_fraction: 0.5,
+        ..cfg.clone()
+    };
+    assert_eq!(drop_nested(boxes.clone(), &half).len(), kept.len() - 1);
+    // 0 turns each rule off.
+    let off = CenterNetConfig {
+        nested_vehicle_fraction: 0.0,
+        nested_pedestrian_fraction: 0.0,
+        ..cfg.clone()
+    };
+    assert_eq!(drop_nested(boxes.clone(), &off), boxes);
+    use roadtrack::config::Validate;
+    for field in ["nested_vehicle_fraction", "nested_pedestrian_fraction"] {
+        let mut bad = cfg.clone();
+        if field.starts_with("nested_v") {
+            bad.nested_vehicle_fraction = 1.5;
+        } else {
+            bad.nested_pedestrian_fraction = -0.1;
+        }
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+}
+
 /// Bounds of the shipped model's test (the committed model: 16/22 and 25/26; a blank or
 /// broken model fails them).
 const BOUND_RECALL: f64 = 0.5;
