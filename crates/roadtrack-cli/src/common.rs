@@ -358,6 +358,7 @@ impl DetectorArgs {
             Some(fraction) => {
                 let gate = roadtrack::detect::motion_gate::MotionGateConfig {
                     min_foreground_fraction: fraction,
+                    ..Default::default()
                 };
                 crate::flags::check_overrides(
                     gate.validate(),
@@ -419,12 +420,15 @@ impl DetectorArgs {
                         "--detections needs --detector file, not --detector cnn",
                     ));
                 }
-                self.onnx.cnn_spec(calibration)?
+                self.onnx.cnn_spec(calibration, gate.is_none())?
             }
         };
-        let Some(gate) = gate else {
+        let Some(mut gate) = gate else {
             return Ok(Some(spec));
         };
+        if kind == DetectorArg::Cnn {
+            gate.nested = self.onnx.gate_nested();
+        }
         Ok(Some(DetectorSpec::MotionGated(
             Box::new(spec),
             background()?,

@@ -159,11 +159,13 @@ impl OnnxArgs {
     }
 
     /// The learned detector, loaded (`--detector cnn`): --detector-model (or --model),
-    /// else the shipped models/detector.onnx.
+    /// else the shipped models/detector.onnx. `nested_in_detector`: false when a motion gate
+    /// drops the nested boxes after gating instead ([`OnnxArgs::gate_nested`]).
     #[cfg(feature = "cnn")]
     pub fn cnn_spec(
         &self,
         calibration: Option<&roadtrack::calibration::Calibration>,
+        nested_in_detector: bool,
     ) -> Result<roadtrack::detect::DetectorSpec> {
         use roadtrack_cnn::centernet::{CenterNetConfig, CenterNetDetector, default_model_path};
         let path = self
@@ -194,9 +196,8 @@ impl OnnxArgs {
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
         }
-        if self.keep_nested {
-            config.nested_vehicle_fraction = 0.0;
-            config.nested_pedestrian_fraction = 0.0;
+        if self.keep_nested || !nested_in_detector {
+            config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
         let mut detector = CenterNetDetector::load(&path, &config)?;
         if let (Some(_), Some(c)) = (self.zoom_small, calibration) {
@@ -210,11 +211,25 @@ impl OnnxArgs {
     pub fn cnn_spec(
         &self,
         _calibration: Option<&roadtrack::calibration::Calibration>,
+        _nested_in_detector: bool,
     ) -> Result<roadtrack::detect::DetectorSpec> {
         anyhow::bail!(
             "--detector cnn needs roadtrack built with the `cnn` feature \
              (cargo build -p roadtrack-cli --features cnn)"
         )
+    }
+
+    /// The nested-box rule a motion gate in front of the learned detector applies after
+    /// gating: the detector's default, or off with --keep-nested.
+    // Choice: after gating, not in the detector. A large box on static structure (a sign
+    // with a person behind it on vtest.avi) would otherwise take the person's head and legs
+    // boxes with it, and the gate would then drop the large box: the person unboxed.
+    pub fn gate_nested(&self) -> roadtrack::detect::nested::NestedConfig {
+        if self.keep_nested {
+            roadtrack::detect::nested::NestedConfig::OFF
+        } else {
+            roadtrack::detect::nested::NestedConfig::default()
+        }
     }
 
     /// The model path: --detector-model (or what the command took as --model).

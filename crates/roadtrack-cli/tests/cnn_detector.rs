@@ -70,6 +70,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         &["--detector", "background", "--zoom-small", "12"][..],
         &["--detector", "cnn", "--zoom-small", "0"][..],
         &["--detector", "cnn", "--calibration", "c.toml"][..],
+        &["--detector", "background", "--keep-nested"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -83,6 +84,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             "--zoom-small",
             "--coarse-min-score",
             "--calibration",
+            "--keep-nested",
         ]
         .into_iter()
         .find(|f| args.contains(f))
@@ -130,8 +132,10 @@ fn motion_gate_keeps_a_subset_of_the_boxes() {
         let out = detect_tiny(dir.path(), gate, name);
         roadtrack::io::detections::read_detections(&out).expect("read output")
     };
-    let all = run(&[], "all.csv");
-    let gated = run(&["--motion-gate", "0.2"], "gated.csv");
+    // Nested boxes kept on both sides: the gate drops nested boxes after gating, so a box
+    // whose container it drops stays (nested_boxes_are_dropped_unless_kept).
+    let all = run(&["--keep-nested"], "all.csv");
+    let gated = run(&["--motion-gate", "0.2", "--keep-nested"], "gated.csv");
     assert!(gated.len() < all.len(), "{} of {}", gated.len(), all.len());
     for d in &gated {
         assert!(
@@ -144,9 +148,9 @@ fn motion_gate_keeps_a_subset_of_the_boxes() {
     }
 }
 
-/// `--zoom-small`: the default boxes and more; with a calibration in which no car is that
-/// small (a nadir view at 0.33 m/px: 13.6 px) nothing is enlarged and the output is the
-/// default's byte for byte.
+/// `--zoom-small`: the default boxes and more (nested boxes kept); with a calibration in
+/// which no car is that small (a nadir view at 0.33 m/px: 13.6 px) nothing is enlarged and
+/// the output is the default's byte for byte.
 #[test]
 fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -160,10 +164,12 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
         std::fs::read_to_string(detect_tiny(dir.path(), extra, name)).expect("read output")
     };
     let plain = run(&[], "plain.csv");
-    let zoomed = run(&["--zoom-small", "12"], "zoomed.csv");
     let cal = cal.to_str().expect("a UTF-8 temporary path");
     let banded = run(&["--zoom-small", "12", "--calibration", cal], "banded.csv");
     assert_eq!(banded, plain);
+    // Nested boxes kept: an added small box may hold a default one.
+    let plain = run(&["--keep-nested"], "plain_all.csv");
+    let zoomed = run(&["--zoom-small", "12", "--keep-nested"], "zoomed.csv");
     // Every default box is in the zoomed output, which has more.
     let boxes = |text: &str| -> Vec<String> {
         text.lines()
@@ -178,6 +184,52 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     assert!(z.len() > p.len(), "{} vs {}", z.len(), p.len());
     for b in &p {
         assert!(z.contains(b), "{b} not in the zoomed output");
+    }
+}
+
+/// Nested boxes: by default no box lies 0.7 or more inside a larger box of its group;
+/// `--keep-nested` gives those boxes back and drops nothing else, with and without the
+/// motion gate (which then applies the rule after gating).
+#[test]
+fn nested_boxes_are_dropped_unless_kept() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |extra: &[&str], name: &str| {
+        roadtrack::io::detections::read_detections(&detect_tiny(dir.path(), extra, name))
+            .expect("read output")
+    };
+    let key = |d: &roadtrack::detection::Detection| {
+        format!("{} {:?} {:?} {:?}", d.frame, d.pos_px, d.size_px, d.class)
+    };
+    let group = |d: &roadtrack::detection::Detection| {
+        d.class == Some(roadtrack::class::ObjectClass::Pedestrian)
+    };
+    let bbox = |d: &roadtrack::detection::Detection| {
+        let (w, h) = d.size_px.expect("a box");
+        roadtrack::geometry::BBox::from_centre(d.pos_px, w, h)
+    };
+    for gate in [&[][..], &["--motion-gate", "0.2"][..]] {
+        let dropped = run(gate, "dropped.csv");
+        let kept = run(&[gate, &["--keep-nested"][..]].concat(), "kept.csv");
+        let kept_keys: Vec<String> = kept.iter().map(key).collect();
+        for d in &dropped {
+            assert!(kept_keys.contains(&key(d)), "{gate:?}: {d:?} not kept");
+        }
+        let nested_in = |all: &[roadtrack::detection::Detection]| {
+            all.iter()
+                .filter(|d| {
+                    let b = bbox(d);
+                    all.iter().any(|k| {
+                        k.frame == d.frame
+                            && group(k) == group(d)
+                            && bbox(k).area() > b.area()
+                            && b.intersection_area(&bbox(k)) >= 0.7 * b.area()
+                    })
+                })
+                .count()
+        };
+        assert_eq!(nested_in(&dropped), 0, "{gate:?}");
+        assert!(nested_in(&kept) > 0, "{gate:?}: the tiny sequence has no nested boxes");
+        assert!(kept.len() > dropped.len(), "{gate:?}");
     }
 }
 

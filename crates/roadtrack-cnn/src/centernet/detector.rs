@@ -18,6 +18,7 @@ use crate::window::Preprocessing;
 use roadtrack::calibration::Calibration;
 use roadtrack::class::ObjectClass;
 use roadtrack::detect::FrameDetections;
+use roadtrack::detect::nested::{NestedConfig, nested};
 use roadtrack::detection::Detection;
 use roadtrack::error::{Error, Result};
 use roadtrack::frame::Frame;
@@ -62,13 +63,10 @@ pub struct CenterNetConfig {
     /// ([`CenterNetDetector::with_zoom_calibration`]) only the rows where cars are that
     /// small are enlarged. Default 0 (off).
     pub zoom_max_side: f64,
-    /// A vehicle box (car, lorry/bus, two-wheeler) lying at least this fraction inside a
-    /// larger vehicle box of any vehicle class is dropped: a part of that vehicle, or the
-    /// same vehicle seen smaller ([`drop_nested`]). 0 = off. Default 0.6.
-    pub nested_vehicle_fraction: f64,
-    /// The same for a pedestrian box inside a larger pedestrian box (a head, legs or upper
-    /// body boxed apart from the whole person). 0 = off. Default 0.7.
-    pub nested_pedestrian_fraction: f64,
+    /// Nested boxes: a box lying mostly inside a larger box of its group (vehicles of any
+    /// class, pedestrians) is dropped, after NMS, the pyramid and the zoom
+    /// ([`drop_nested`]). Default 0.6 for vehicles, 0.7 for pedestrians.
+    pub nested: NestedConfig,
 }
 
 /// Zoom: a zoomed-level box overlapping a box of the other levels by more than this IoU is
@@ -117,12 +115,7 @@ impl Default for CenterNetConfig {
             // vehicles, seed 0); without a calibration it costs precision on the aerial
             // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
-            // Choice: 0.6 and 0.7. Class-wise NMS at IoU 0.45 keeps a small box inside a
-            // large one (IoU = area ratio); on the seed-0 scenes these drop such boxes for
-            // +0.03–0.05 vehicle precision at ≤ 0.012 recall, and crossing pedestrians
-            // 0.82 / 0.81 → 0.81 / 0.86 (docs/DETECTION.md "Nested boxes").
-            nested_vehicle_fraction: 0.6,
-            nested_pedestrian_fraction: 0.7,
+            nested: NestedConfig::default(),
         }
     }
 }
@@ -135,8 +128,6 @@ impl roadtrack::config::Validate for CenterNetConfig {
             ("cross_class_iou", self.cross_class_iou),
             ("part_fraction", self.part_fraction),
             ("coarse_min_score", self.coarse_min_score),
-            ("nested_vehicle_fraction", self.nested_vehicle_fraction),
-            ("nested_pedestrian_fraction", self.nested_pedestrian_fraction),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(Error::config(
@@ -179,6 +170,7 @@ impl roadtrack::config::Validate for CenterNetConfig {
                 ));
             }
         }
+        self.nested.validate("CenterNetConfig.nested")?;
         if self.max_detections == 0 {
             return Err(Error::config(
                 "CenterNetConfig",
@@ -606,38 +598,21 @@ pub fn merge_levels(
     out
 }
 
-/// `boxes` without those lying at least [`CenterNetConfig::nested_vehicle_fraction`]
-/// (vehicles, any vehicle class) or [`CenterNetConfig::nested_pedestrian_fraction`]
-/// (pedestrians) inside a larger box of the same group; the order is kept.
-// Choice: the larger box wins whatever the scores. On the seed-0 scenes keeping the
-// better-scored box of a nested pair instead lost more recall (road aerial vehicles 0.827
-// → 0.815) for less precision; a whole object's box is the one the truth has. A box is
-// tested against every other box, dropped ones included, so the result does not depend on
-// the order.
+/// `boxes` without those lying mostly inside a larger box of their group
+/// ([`CenterNetConfig::nested`], [`roadtrack::detect::nested::nested`]); the order is kept.
 pub fn drop_nested(boxes: Vec<Candidate>, cfg: &CenterNetConfig) -> Vec<Candidate> {
-    let pedestrian = |c: &Candidate| channel_class(c.class) == ObjectClass::Pedestrian;
-    let fraction = |c: &Candidate| {
-        if pedestrian(c) {
-            cfg.nested_pedestrian_fraction
-        } else {
-            cfg.nested_vehicle_fraction
-        }
-    };
-    let nested: Vec<bool> = boxes
+    let judged: Vec<(BBox, bool)> = boxes
         .iter()
         .map(|c| {
-            let f = fraction(c);
-            f > 0.0
-                && boxes.iter().any(|k| {
-                    pedestrian(k) == pedestrian(c)
-                        && k.w * k.h > c.w * c.h
-                        && c.inside_fraction(k) >= f
-                })
+            (
+                BBox::from_centre(Point::new(c.cx, c.cy), c.w, c.h),
+                channel_class(c.class) == ObjectClass::Pedestrian,
+            )
         })
         .collect();
     boxes
         .into_iter()
-        .zip(nested)
+        .zip(nested(&judged, &cfg.nested))
         .filter_map(|(c, n)| (!n).then_some(c))
         .collect()
 }

@@ -306,25 +306,22 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     back.reverse();
     assert_eq!(keys(&back), keys(&kept));
     // The moto's half inside counts at a fraction of 0.5.
-    let half = CenterNetConfig {
-        nested_vehicle_fraction: 0.5,
-        ..cfg.clone()
-    };
+    let mut half = cfg.clone();
+    half.nested.vehicle_fraction = 0.5;
     assert_eq!(drop_nested(boxes.clone(), &half).len(), kept.len() - 1);
     // 0 turns each rule off.
     let off = CenterNetConfig {
-        nested_vehicle_fraction: 0.0,
-        nested_pedestrian_fraction: 0.0,
+        nested: roadtrack::detect::nested::NestedConfig::OFF,
         ..cfg.clone()
     };
     assert_eq!(drop_nested(boxes.clone(), &off), boxes);
     use roadtrack::config::Validate;
-    for field in ["nested_vehicle_fraction", "nested_pedestrian_fraction"] {
+    for field in ["vehicle_fraction", "pedestrian_fraction"] {
         let mut bad = cfg.clone();
-        if field.starts_with("nested_v") {
-            bad.nested_vehicle_fraction = 1.5;
+        if field.starts_with('v') {
+            bad.nested.vehicle_fraction = 1.5;
         } else {
-            bad.nested_pedestrian_fraction = -0.1;
+            bad.nested.pedestrian_fraction = -0.1;
         }
         let e = bad.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");

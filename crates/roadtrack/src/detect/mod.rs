@@ -12,6 +12,7 @@ pub mod centernet;
 pub mod columns;
 pub mod file;
 pub mod motion_gate;
+pub mod nested;
 pub mod regions;
 pub mod split;
 pub mod startup;

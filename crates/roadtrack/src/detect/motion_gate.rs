@@ -10,6 +10,7 @@
 //! traffic, and off unless asked for.
 
 use super::background::BackgroundDetector;
+use super::nested::{NestedConfig, drop_nested_detections};
 use super::{Detector, FrameDetections};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -23,12 +24,16 @@ pub struct MotionGateConfig {
     /// Smallest fraction of a box's pixels that must be foreground (the background
     /// detector's cleaned mask) for the box to be kept. Default 0.2.
     pub min_foreground_fraction: f64,
+    /// Nested boxes dropped after gating ([`super::nested`]). Default off; `detect
+    /// --detector cnn --motion-gate F` moves the learned detector's rule here.
+    pub nested: NestedConfig,
 }
 
 impl Default for MotionGateConfig {
     fn default() -> Self {
         Self {
             min_foreground_fraction: 0.2,
+            nested: NestedConfig::OFF,
         }
     }
 }
@@ -46,7 +51,7 @@ impl MotionGateConfig {
                 format!("must be in (0, 1], found {}", self.min_foreground_fraction),
             ));
         }
-        Ok(())
+        self.nested.validate("MotionGateConfig.nested")
     }
 }
 
@@ -106,7 +111,7 @@ impl MotionGated {
     }
 
     fn gate(&self, found: FrameDetections, mask: GrayImage) -> FrameDetections {
-        let mut detections: Vec<_> = found
+        let detections: Vec<_> = found
             .detections
             .into_iter()
             .filter(|d| {
@@ -116,6 +121,7 @@ impl MotionGated {
                     >= self.config.min_foreground_fraction
             })
             .collect();
+        let mut detections = drop_nested_detections(detections, &self.config.nested);
         for (i, d) in detections.iter_mut().enumerate() {
             d.id = i as u64 + 1;
         }
@@ -217,10 +223,21 @@ mod tests {
         for f in [0.0, 1.5, f64::NAN] {
             let err = MotionGateConfig {
                 min_foreground_fraction: f,
+                ..Default::default()
             }
             .validate()
             .expect_err("out of range");
             assert!(err.to_string().contains("min_foreground_fraction"), "{err}");
         }
+        let err = MotionGateConfig {
+            nested: NestedConfig {
+                vehicle_fraction: 2.0,
+                pedestrian_fraction: 0.7,
+            },
+            ..Default::default()
+        }
+        .validate()
+        .expect_err("out of range");
+        assert!(err.to_string().contains("vehicle_fraction"), "{err}");
     }
 }
