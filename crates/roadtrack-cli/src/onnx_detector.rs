@@ -98,6 +98,10 @@ pub struct OnnxArgs {
     /// pedestrians); by default it is dropped as a part of that object.
     #[arg(long)]
     pub keep_nested: bool,
+    /// --detector cnn: run the network on the frame only, not also on its mirror image
+    /// (by default the two are averaged: better boxes for twice the compute).
+    #[arg(long)]
+    pub no_flip: bool,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -136,6 +140,7 @@ impl OnnxArgs {
             ("--coarse-min-score", self.coarse_min_score.is_some()),
             ("--zoom-small", self.zoom_small.is_some()),
             ("--keep-nested", self.keep_nested),
+            ("--no-flip", self.no_flip),
         ]
     }
 
@@ -153,6 +158,7 @@ impl OnnxArgs {
                         | "--coarse-min-score"
                         | "--zoom-small"
                         | "--keep-nested"
+                        | "--no-flip"
                 )
             })
             .collect()
@@ -196,6 +202,7 @@ impl OnnxArgs {
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
         }
+        config.flip = !self.no_flip;
         if self.keep_nested || !nested_in_detector {
             config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
@@ -255,6 +262,7 @@ impl OnnxArgs {
                 ("--coarse-min-score", self.coarse_min_score.is_some()),
                 ("--zoom-small", self.zoom_small.is_some()),
                 ("--keep-nested", self.keep_nested),
+                ("--no-flip", self.no_flip),
             ],
             "only with --detector cnn, not --detector onnx",
         )?;

@@ -107,6 +107,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                     &generated,
                     &mut det,
                 )?);
+                // Without the test-time flip (`--no-flip`): half the compute.
+                let single = CenterNetConfig {
+                    flip: false,
+                    ..CenterNetConfig::default()
+                };
+                let mut det = CenterNetDetector::load(&path, &single)?;
+                results.push(bench::detect_with(
+                    "detect-cnn --no-flip",
+                    "generated 640×480, 12 boxes",
+                    &generated,
+                    &mut det,
+                )?);
                 // With the zoomed level (`--zoom-small 12`): four times the full-size
                 // level's compute.
                 let zoom = CenterNetConfig {

@@ -67,6 +67,10 @@ pub struct CenterNetConfig {
     /// class, pedestrians) is dropped, after NMS, the pyramid and the zoom
     /// ([`drop_nested`]). Default 0.6 for vehicles, 0.7 for pedestrians.
     pub nested: NestedConfig,
+    /// Test-time flip: the network also runs on the frame mirrored left–right and each
+    /// cell's heat, log size and offsets are the mean of the two runs (mirrored back,
+    /// [`average_mirrored`]). Twice the compute. Default on.
+    pub flip: bool,
 }
 
 /// Zoom: a zoomed-level box overlapping a box of the other levels by more than this IoU is
@@ -116,6 +120,12 @@ impl Default for CenterNetConfig {
             // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
             nested: NestedConfig::default(),
+            // Choice: on. The network's boxes scatter (centre sd 1.4–2.8 px, size sd
+            // 18–31 % on aerial cars) more than they are biased, and the mean of two views
+            // halves the variance of what is independent in them: vehicle R / P at IoU 0.5,
+            // seed 0, road aerial 0.83 / 0.78 → 0.88 / 0.85, crossing aerial 0.86 / 0.69 →
+            // 0.93 / 0.75 (docs/DETECTION.md "Test-time flip"), for half the frame rate.
+            flip: true,
         }
     }
 }
@@ -378,8 +388,25 @@ impl CenterNetDetector {
     /// The model fails to run.
     pub fn heat_maps(&self, image: &RgbImage) -> Result<HeatMaps> {
         let (input, ph, pw) = self.input(image);
-        let (heat, boxes) = self.run_padded(input, ph, pw)?;
+        let mirrored = self.config.flip.then(|| mirror_input(&input, ph, pw));
+        let (mut heat, mut boxes) = self.run_padded(input, ph, pw)?;
         let (oh, ow) = (ph / STRIDE, pw / STRIDE);
+        if let Some(m) = mirrored {
+            let (mh, mb) = self.run_padded(m, ph, pw)?;
+            if heat.shape() != mh.shape()
+                || boxes.shape() != mb.shape()
+                || boxes.shape() != [1, 4, oh, ow]
+            {
+                return Err(model_error(
+                    &self.path,
+                    format!(
+                        "output shape {:?}, expected [1, 4, {oh}, {ow}]",
+                        boxes.shape()
+                    ),
+                ));
+            }
+            average_mirrored(&mut heat, &mut boxes, &mh, &mb);
+        }
         let cols = (image.width() as usize).div_ceil(STRIDE).max(1);
         let rows = (image.height() as usize).div_ceil(STRIDE).max(1);
         let crop = |a: &tract_ndarray::ArrayD<f32>, ch: usize| -> Result<Vec<f32>> {
@@ -596,6 +623,52 @@ pub fn merge_levels(
         .collect();
     out.extend(coarse);
     out
+}
+
+/// `input` (`3 × h × w`, row-major) mirrored left–right.
+pub fn mirror_input(input: &[f32], h: usize, w: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(input.len());
+    for row in input.chunks_exact(w).take(3 * h) {
+        out.extend(row.iter().rev());
+    }
+    out
+}
+
+/// Folds the outputs of the mirrored input (`mh`, `mb`) into `heat` and `boxes` (each
+/// `1 × C × rows × cols`): per cell the mean of the two, the mirrored one read at the
+/// mirrored cell. Box channels: log width and log height average as they are; the x offset
+/// `dx` of a centre at `4 (c + dx)` is `1 − dx'` read at cell `cols − 1 − c` (the padded
+/// width is a multiple of the stride, so mirroring maps `x` to `width − x`); `dy` as is.
+pub fn average_mirrored(
+    heat: &mut tract_ndarray::ArrayD<f32>,
+    boxes: &mut tract_ndarray::ArrayD<f32>,
+    mh: &tract_ndarray::ArrayD<f32>,
+    mb: &tract_ndarray::ArrayD<f32>,
+) {
+    use tract_ndarray::IxDyn;
+    let shape = heat.shape().to_vec();
+    let (ch, rows, cols) = (shape[1], shape[2], shape[3]);
+    for k in 0..ch {
+        for r in 0..rows {
+            for c in 0..cols {
+                let m = mh[IxDyn(&[0, k, r, cols - 1 - c])];
+                let v = &mut heat[IxDyn(&[0, k, r, c])];
+                *v = 0.5 * (*v + m);
+            }
+        }
+    }
+    for k in 0..4 {
+        for r in 0..rows {
+            for c in 0..cols {
+                let mut m = mb[IxDyn(&[0, k, r, cols - 1 - c])];
+                if k == 2 {
+                    m = 1.0 - m;
+                }
+                let v = &mut boxes[IxDyn(&[0, k, r, c])];
+                *v = 0.5 * (*v + m);
+            }
+        }
+    }
 }
 
 /// `boxes` without those lying mostly inside a larger box of their group

@@ -277,12 +277,12 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     let boxes = vec![
         cand(100.0, 100.0, 40.0, 16.0, lorry, 0.5), // a lorry
         cand(92.0, 100.0, 16.0, 12.0, car, 0.9),    // its cab as a car, all inside: dropped
-        cand(120.0, 100.0, 8.0, 6.0, moto, 0.6), // 4/8 of it inside the lorry: 0.5, kept
-        cand(100.0, 98.0, 6.0, 14.0, ped, 0.8),  // a pedestrian in front of it: kept
-        cand(300.0, 200.0, 10.0, 30.0, ped, 0.7), // a person
-        cand(300.0, 190.0, 6.0, 8.0, ped, 0.95), // their head: dropped
-        cand(306.0, 200.0, 10.0, 30.0, ped, 0.6), // a person beside them (0.4 inside): kept
-        cand(500.0, 50.0, 20.0, 10.0, car, 0.4), // two boxes of one size: both kept
+        cand(120.0, 100.0, 8.0, 6.0, moto, 0.6),    // 4/8 of it inside the lorry: 0.5, kept
+        cand(100.0, 98.0, 6.0, 14.0, ped, 0.8),     // a pedestrian in front of it: kept
+        cand(300.0, 200.0, 10.0, 30.0, ped, 0.7),   // a person
+        cand(300.0, 190.0, 6.0, 8.0, ped, 0.95),    // their head: dropped
+        cand(306.0, 200.0, 10.0, 30.0, ped, 0.6),   // a person beside them (0.4 inside): kept
+        cand(500.0, 50.0, 20.0, 10.0, car, 0.4),    // two boxes of one size: both kept
         cand(502.0, 50.0, 20.0, 10.0, car, 0.3),
     ];
     let kept = drop_nested(boxes.clone(), &cfg);
@@ -326,6 +326,134 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
         let e = bad.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
+}
+
+/// With the test-time flip the detector is mirror-equivariant: the boxes of a mirrored
+/// frame are the mirrored boxes of the frame (same classes and scores), as both runs see
+/// the same two inputs.
+#[test]
+fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    let cfg = CenterNetConfig {
+        flip: true,
+        ..Default::default()
+    };
+    let det = CenterNetDetector::load(&shipped(), &cfg)?;
+    let sim = SimConfig {
+        scene: SceneKind::Road,
+        view: ViewKind::Aerial,
+        frames: 1,
+        ..SimConfig::default()
+    };
+    let run = roadtrack_sim::simulate_in_memory(&sim, 23)?;
+    let image = &run.frames[0].image;
+    // 640 px: a multiple of 16 at both pyramid levels, so padding does not break symmetry.
+    assert_eq!(image.width() % 32, 0);
+    let mirrored = image::imageops::flip_horizontal(image);
+    let w = f64::from(image.width());
+    let key = |b: &roadtrack::geometry::BBox, c: &roadtrack::class::ObjectClass, s: f64| {
+        (b.left, b.top, b.width, b.height, c.clone(), s)
+    };
+    let mut a: Vec<_> = det
+        .detect_boxes(image)?
+        .iter()
+        .map(|(b, c, s)| key(b, c, *s))
+        .collect();
+    let mut m: Vec<_> = det
+        .detect_boxes(&mirrored)?
+        .iter()
+        .map(|(b, c, s)| {
+            (
+                w - b.left - b.width,
+                b.top,
+                b.width,
+                b.height,
+                c.clone(),
+                *s,
+            )
+        })
+        .collect();
+    assert!(a.len() >= 5, "{a:?}");
+    let order = |v: &mut Vec<(f64, f64, f64, f64, roadtrack::class::ObjectClass, f64)>| {
+        v.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+    };
+    order(&mut a);
+    order(&mut m);
+    assert_eq!(a.len(), m.len());
+    for (p, q) in a.iter().zip(&m) {
+        let close = (p.0 - q.0).abs() < 1e-3
+            && (p.1 - q.1).abs() < 1e-3
+            && (p.2 - q.2).abs() < 1e-3
+            && (p.3 - q.3).abs() < 1e-3
+            && (p.5 - q.5).abs() < 1e-6;
+        assert!(close && p.4 == q.4, "{p:?} vs mirrored {q:?}");
+    }
+    // Without the flip the network alone is not: some box moves.
+    let plain = CenterNetDetector::load(
+        &shipped(),
+        &CenterNetConfig {
+            flip: false,
+            ..Default::default()
+        },
+    )?;
+    let one: Vec<_> = plain.detect_boxes(image)?;
+    let other: Vec<_> = plain.detect_boxes(&mirrored)?;
+    let moved = one.len() != other.len()
+        || one.iter().any(|(b, _, _)| {
+            !other.iter().any(|(o, _, _)| {
+                (w - o.left - o.width - b.left).abs() < 1e-3 && (o.width - b.width).abs() < 1e-3
+            })
+        });
+    assert!(
+        moved,
+        "the plain network is already mirror-equivariant here"
+    );
+    Ok(())
+}
+
+#[test]
+fn mirrored_outputs_fold_back_onto_their_cells() {
+    use tract_onnx::prelude::tract_ndarray::{ArrayD, IxDyn};
+    // Outputs of 2 rows × 3 cols; the mirrored run's outputs are those of a network that
+    // sees the mirror exactly: values at the mirrored cell, x offsets 1 − dx.
+    let (rows, cols) = (2, 3);
+    let f = |k: usize, r: usize, c: usize| (k * 100 + r * 10 + c) as f32 / 1000.0;
+    let heat = ArrayD::from_shape_fn(IxDyn(&[1, CLASSES, rows, cols]), |i| f(i[1], i[2], i[3]));
+    let boxes = ArrayD::from_shape_fn(IxDyn(&[1, 4, rows, cols]), |i| f(i[1], i[2], i[3]));
+    let mh = ArrayD::from_shape_fn(IxDyn(&[1, CLASSES, rows, cols]), |i| {
+        f(i[1], i[2], cols - 1 - i[3])
+    });
+    let mb = ArrayD::from_shape_fn(IxDyn(&[1, 4, rows, cols]), |i| {
+        let v = f(i[1], i[2], cols - 1 - i[3]);
+        if i[1] == 2 { 1.0 - v } else { v }
+    });
+    let (mut h2, mut b2) = (heat.clone(), boxes.clone());
+    average_mirrored(&mut h2, &mut b2, &mh, &mb);
+    for (x, y) in h2
+        .iter()
+        .zip(heat.iter())
+        .chain(b2.iter().zip(boxes.iter()))
+    {
+        assert!((x - y).abs() < 1e-6, "{x} vs {y}");
+    }
+    // A mirrored run that disagrees moves each value half way.
+    let zeros = ArrayD::<f32>::zeros(IxDyn(&[1, 4, rows, cols]));
+    let (mut h3, mut b3) = (heat.clone(), boxes.clone());
+    average_mirrored(
+        &mut h3,
+        &mut b3,
+        &ArrayD::zeros(IxDyn(&[1, CLASSES, rows, cols])),
+        &zeros,
+    );
+    assert!((h3[IxDyn(&[0, 1, 1, 2])] - 0.5 * f(1, 1, 2)).abs() < 1e-6);
+    // x offset: the mirrored run's 0 means 1 at this cell.
+    assert!((b3[IxDyn(&[0, 2, 0, 0])] - 0.5 * (f(2, 0, 0) + 1.0)).abs() < 1e-6);
+    assert!((b3[IxDyn(&[0, 3, 0, 0])] - 0.5 * f(3, 0, 0)).abs() < 1e-6);
+    // The input mirror is an involution that reverses each row.
+    let input: Vec<f32> = (0..3 * 2 * 4).map(|v| v as f32).collect();
+    let once = mirror_input(&input, 2, 4);
+    assert_eq!(&once[..4], &[3.0, 2.0, 1.0, 0.0]);
+    assert_eq!(mirror_input(&once, 2, 4), input);
 }
 
 /// Bounds of the shipped model's test (the committed model: 16/22 and 25/26; a blank or

@@ -103,8 +103,12 @@ pub fn drop_nested_detections(detections: Vec<Detection>, cfg: &NestedConfig) ->
         .map(|d| {
             let (w, h) = d.size_px?;
             let class = d.class.as_ref()?;
-            (class != &ObjectClass::Unknown)
-                .then(|| (BBox::from_centre(d.pos_px, w, h), class == &ObjectClass::Pedestrian))
+            (class != &ObjectClass::Unknown).then(|| {
+                (
+                    BBox::from_centre(d.pos_px, w, h),
+                    class == &ObjectClass::Pedestrian,
+                )
+            })
         })
         .collect();
     let boxes: Vec<(BBox, bool)> = judged.iter().flatten().copied().collect();
@@ -141,11 +145,11 @@ mod tests {
         let dets = vec![
             det(1, 300.0, 200.0, 10.0, 30.0, Some(ObjectClass::Pedestrian)), // a person
             det(2, 300.0, 190.0, 6.0, 8.0, Some(ObjectClass::Pedestrian)),   // their head
-            det(3, 300.0, 195.0, 6.0, 8.0, Some(ObjectClass::Car)), // another group: kept
-            det(4, 300.0, 192.0, 4.0, 4.0, None),                   // no class: kept
-            det(5, 100.0, 100.0, 40.0, 16.0, Some(ObjectClass::Truck)), // a lorry
-            det(6, 92.0, 100.0, 16.0, 12.0, Some(ObjectClass::Car)),    // its cab
-            det(7, 100.0, 100.0, 30.0, 30.0, Some(ObjectClass::Unknown)), // unknown: kept
+            det(3, 300.0, 195.0, 6.0, 8.0, Some(ObjectClass::Car)),          // another group: kept
+            det(4, 300.0, 192.0, 4.0, 4.0, None),                            // no class: kept
+            det(5, 100.0, 100.0, 40.0, 16.0, Some(ObjectClass::Truck)),      // a lorry
+            det(6, 92.0, 100.0, 16.0, 12.0, Some(ObjectClass::Car)),         // its cab
+            det(7, 100.0, 100.0, 30.0, 30.0, Some(ObjectClass::Unknown)),    // unknown: kept
         ];
         let mut no_box = Detection::at(7, 8, Point::new(300.0, 200.0));
         no_box.class = Some(ObjectClass::Pedestrian);

@@ -36,13 +36,13 @@ mod tracker;
 
 pub use super::FilterStageTimes;
 pub use association::{LabelAssociation, marginal_associations};
+pub use cardinality::map_cardinality;
 pub use config::{LabelUpdate, PhdConfig};
 pub use detections::{BoxMeasurement, DetectionModel};
 pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;
 pub use occlusion::{LabelBox, occluded_pd, visible_fractions};
-pub use cardinality::map_cardinality;
 pub use tracker::PhdTracker;
 
 use crate::error::Result;
