@@ -102,6 +102,10 @@ pub struct OnnxArgs {
     /// (by default the two are averaged: better boxes for twice the compute).
     #[arg(long)]
     pub no_flip: bool,
+    /// --detector cnn: also average the frame upside down (and, unless --no-flip, mirrored
+    /// and upside down): for nadir (aerial) views; twice the compute again.
+    #[arg(long)]
+    pub flip_vertical: bool,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -141,6 +145,7 @@ impl OnnxArgs {
             ("--zoom-small", self.zoom_small.is_some()),
             ("--keep-nested", self.keep_nested),
             ("--no-flip", self.no_flip),
+            ("--flip-vertical", self.flip_vertical),
         ]
     }
 
@@ -159,6 +164,7 @@ impl OnnxArgs {
                         | "--zoom-small"
                         | "--keep-nested"
                         | "--no-flip"
+                        | "--flip-vertical"
                 )
             })
             .collect()
@@ -203,6 +209,7 @@ impl OnnxArgs {
             config.zoom_max_side = px;
         }
         config.flip = !self.no_flip;
+        config.flip_vertical = self.flip_vertical;
         if self.keep_nested || !nested_in_detector {
             config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
@@ -263,6 +270,7 @@ impl OnnxArgs {
                 ("--zoom-small", self.zoom_small.is_some()),
                 ("--keep-nested", self.keep_nested),
                 ("--no-flip", self.no_flip),
+                ("--flip-vertical", self.flip_vertical),
             ],
             "only with --detector cnn, not --detector onnx",
         )?;

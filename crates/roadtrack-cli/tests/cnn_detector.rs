@@ -72,6 +72,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         &["--detector", "cnn", "--calibration", "c.toml"][..],
         &["--detector", "background", "--keep-nested"][..],
         &["--detector", "onnx", "--model", "m.onnx", "--no-flip"][..],
+        &["--detector", "background", "--flip-vertical"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -87,6 +88,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             "--calibration",
             "--keep-nested",
             "--no-flip",
+            "--flip-vertical",
         ]
         .into_iter()
         .find(|f| args.contains(f))

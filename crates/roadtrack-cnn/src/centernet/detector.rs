@@ -71,6 +71,10 @@ pub struct CenterNetConfig {
     /// cell's heat, log size and offsets are the mean of the two runs (mirrored back,
     /// [`average_mirrored`]). Twice the compute. Default on.
     pub flip: bool,
+    /// Test-time flip upside down too: with [`CenterNetConfig::flip`] four runs (as is,
+    /// mirrored, upside down, both), else two. For nadir views, where nothing has an up.
+    /// Default off.
+    pub flip_vertical: bool,
 }
 
 /// Zoom: a zoomed-level box overlapping a box of the other levels by more than this IoU is
@@ -126,6 +130,7 @@ impl Default for CenterNetConfig {
             // seed 0, road aerial 0.83 / 0.78 → 0.88 / 0.85, crossing aerial 0.86 / 0.69 →
             // 0.93 / 0.75 (docs/DETECTION.md "Test-time flip"), for half the frame rate.
             flip: true,
+            flip_vertical: false,
         }
     }
 }
@@ -388,24 +393,41 @@ impl CenterNetDetector {
     /// The model fails to run.
     pub fn heat_maps(&self, image: &RgbImage) -> Result<HeatMaps> {
         let (input, ph, pw) = self.input(image);
-        let mirrored = self.config.flip.then(|| mirror_input(&input, ph, pw));
+        let mut flips = Vec::new();
+        if self.config.flip {
+            flips.push((true, false));
+        }
+        if self.config.flip_vertical {
+            flips.push((false, true));
+            if self.config.flip {
+                flips.push((true, true));
+            }
+        }
+        let flipped: Vec<Vec<f32>> = flips
+            .iter()
+            .map(|&(x, y)| flip_input(&input, ph, pw, x, y))
+            .collect();
         let (mut heat, mut boxes) = self.run_padded(input, ph, pw)?;
         let (oh, ow) = (ph / STRIDE, pw / STRIDE);
-        if let Some(m) = mirrored {
-            let (mh, mb) = self.run_padded(m, ph, pw)?;
-            if heat.shape() != mh.shape()
-                || boxes.shape() != mb.shape()
-                || boxes.shape() != [1, 4, oh, ow]
-            {
-                return Err(model_error(
-                    &self.path,
-                    format!(
-                        "output shape {:?}, expected [1, 4, {oh}, {ow}]",
-                        boxes.shape()
-                    ),
-                ));
+        if !flips.is_empty() {
+            let mut views = Vec::with_capacity(flips.len());
+            for (m, &(x, y)) in flipped.into_iter().zip(&flips) {
+                let (mh, mb) = self.run_padded(m, ph, pw)?;
+                if heat.shape() != mh.shape()
+                    || boxes.shape() != mb.shape()
+                    || boxes.shape() != [1, 4, oh, ow]
+                {
+                    return Err(model_error(
+                        &self.path,
+                        format!(
+                            "output shape {:?}, expected [1, 4, {oh}, {ow}]",
+                            boxes.shape()
+                        ),
+                    ));
+                }
+                views.push((mh, mb, x, y));
             }
-            average_mirrored(&mut heat, &mut boxes, &mh, &mb);
+            average_flipped(&mut heat, &mut boxes, &views);
         }
         let cols = (image.width() as usize).div_ceil(STRIDE).max(1);
         let rows = (image.height() as usize).div_ceil(STRIDE).max(1);
@@ -627,45 +649,88 @@ pub fn merge_levels(
 
 /// `input` (`3 × h × w`, row-major) mirrored left–right.
 pub fn mirror_input(input: &[f32], h: usize, w: usize) -> Vec<f32> {
+    flip_input(input, h, w, true, false)
+}
+
+/// `input` (`3 × h × w`, row-major) mirrored left–right (`x`) and/or upside down (`y`).
+pub fn flip_input(input: &[f32], h: usize, w: usize, x: bool, y: bool) -> Vec<f32> {
     let mut out = Vec::with_capacity(input.len());
-    for row in input.chunks_exact(w).take(3 * h) {
-        out.extend(row.iter().rev());
+    for plane in input.chunks_exact(h * w).take(3) {
+        for r in 0..h {
+            let row = &plane[if y { h - 1 - r } else { r } * w..][..w];
+            if x {
+                out.extend(row.iter().rev());
+            } else {
+                out.extend_from_slice(row);
+            }
+        }
     }
     out
 }
 
-/// Folds the outputs of the mirrored input (`mh`, `mb`) into `heat` and `boxes` (each
-/// `1 × C × rows × cols`): per cell the mean of the two, the mirrored one read at the
-/// mirrored cell. Box channels: log width and log height average as they are; the x offset
-/// `dx` of a centre at `4 (c + dx)` is `1 − dx'` read at cell `cols − 1 − c` (the padded
-/// width is a multiple of the stride, so mirroring maps `x` to `width − x`); `dy` as is.
+/// [`average_flipped`] with one view, the input mirrored left–right.
 pub fn average_mirrored(
     heat: &mut tract_ndarray::ArrayD<f32>,
     boxes: &mut tract_ndarray::ArrayD<f32>,
     mh: &tract_ndarray::ArrayD<f32>,
     mb: &tract_ndarray::ArrayD<f32>,
 ) {
+    average_flipped(heat, boxes, &[(mh.clone(), mb.clone(), true, false)]);
+}
+
+/// Folds the outputs of flipped inputs (`views`: heat, boxes, mirrored left–right, upside
+/// down) into `heat` and `boxes` (each `1 × C × rows × cols`): per cell the mean over the
+/// original and every view, each view read at the mirrored cell. Box channels: log width
+/// and log height average as they are; the x offset `dx` of a centre at `4 (c + dx)` is
+/// `1 − dx'` read at cell `cols − 1 − c` of a left–right view (the padded sides are
+/// multiples of the stride, so mirroring maps `x` to `width − x`), `dy` likewise for an
+/// upside-down view.
+pub fn average_flipped(
+    heat: &mut tract_ndarray::ArrayD<f32>,
+    boxes: &mut tract_ndarray::ArrayD<f32>,
+    views: &[(
+        tract_ndarray::ArrayD<f32>,
+        tract_ndarray::ArrayD<f32>,
+        bool,
+        bool,
+    )],
+) {
     use tract_ndarray::IxDyn;
     let shape = heat.shape().to_vec();
     let (ch, rows, cols) = (shape[1], shape[2], shape[3]);
+    let n = (views.len() + 1) as f32;
     for k in 0..ch {
         for r in 0..rows {
             for c in 0..cols {
-                let m = mh[IxDyn(&[0, k, r, cols - 1 - c])];
-                let v = &mut heat[IxDyn(&[0, k, r, c])];
-                *v = 0.5 * (*v + m);
+                let mut sum = heat[IxDyn(&[0, k, r, c])];
+                for (mh, _, x, y) in views {
+                    let (rr, cc) = (
+                        if *y { rows - 1 - r } else { r },
+                        if *x { cols - 1 - c } else { c },
+                    );
+                    sum += mh[IxDyn(&[0, k, rr, cc])];
+                }
+                heat[IxDyn(&[0, k, r, c])] = sum / n;
             }
         }
     }
     for k in 0..4 {
         for r in 0..rows {
             for c in 0..cols {
-                let mut m = mb[IxDyn(&[0, k, r, cols - 1 - c])];
-                if k == 2 {
-                    m = 1.0 - m;
+                let mut sum = boxes[IxDyn(&[0, k, r, c])];
+                for (_, mb, x, y) in views {
+                    let (rr, cc) = (
+                        if *y { rows - 1 - r } else { r },
+                        if *x { cols - 1 - c } else { c },
+                    );
+                    let v = mb[IxDyn(&[0, k, rr, cc])];
+                    sum += if (k == 2 && *x) || (k == 3 && *y) {
+                        1.0 - v
+                    } else {
+                        v
+                    };
                 }
-                let v = &mut boxes[IxDyn(&[0, k, r, c])];
-                *v = 0.5 * (*v + m);
+                boxes[IxDyn(&[0, k, r, c])] = sum / n;
             }
         }
     }

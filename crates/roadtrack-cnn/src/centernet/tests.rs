@@ -411,6 +411,67 @@ fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
     Ok(())
 }
 
+/// With both flips the detector is equivariant under turning the frame upside down too.
+#[test]
+fn with_both_flips_an_upside_down_frame_gives_the_upside_down_boxes() -> Result<()> {
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    let cfg = CenterNetConfig {
+        flip_vertical: true,
+        ..Default::default()
+    };
+    let det = CenterNetDetector::load(&shipped(), &cfg)?;
+    let sim = SimConfig {
+        scene: SceneKind::Road,
+        view: ViewKind::Aerial,
+        frames: 1,
+        ..SimConfig::default()
+    };
+    let run = roadtrack_sim::simulate_in_memory(&sim, 23)?;
+    let image = &run.frames[0].image;
+    // 480 px: a multiple of 16 at both pyramid levels.
+    assert_eq!(image.height() % 32, 0);
+    let upside_down = image::imageops::flip_vertical(image);
+    let h = f64::from(image.height());
+    let sorted = |mut v: Vec<(f64, f64, f64, f64, f64)>| {
+        v.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+        v
+    };
+    let a = sorted(
+        det.detect_boxes(image)?
+            .iter()
+            .map(|(b, _, s)| (b.left, b.top, b.width, b.height, *s))
+            .collect(),
+    );
+    let m = sorted(
+        det.detect_boxes(&upside_down)?
+            .iter()
+            .map(|(b, _, s)| (b.left, h - b.top - b.height, b.width, b.height, *s))
+            .collect(),
+    );
+    assert!(a.len() >= 5, "{a:?}");
+    assert_eq!(a.len(), m.len());
+    for (p, q) in a.iter().zip(&m) {
+        let close = (p.0 - q.0).abs() < 1e-3
+            && (p.1 - q.1).abs() < 1e-3
+            && (p.2 - q.2).abs() < 1e-3
+            && (p.3 - q.3).abs() < 1e-3
+            && (p.4 - q.4).abs() < 1e-6;
+        assert!(close, "{p:?} vs upside down {q:?}");
+    }
+    // The input flips are involutions.
+    let input: Vec<f32> = (0..3 * 2 * 4).map(|v| v as f32).collect();
+    for (x, y) in [(true, false), (false, true), (true, true)] {
+        let once = flip_input(&input, 2, 4, x, y);
+        assert_ne!(once, input);
+        assert_eq!(flip_input(&once, 2, 4, x, y), input);
+    }
+    assert_eq!(
+        &flip_input(&input, 2, 4, false, true)[..4],
+        &[4.0, 5.0, 6.0, 7.0]
+    );
+    Ok(())
+}
+
 #[test]
 fn mirrored_outputs_fold_back_onto_their_cells() {
     use tract_onnx::prelude::tract_ndarray::{ArrayD, IxDyn};
