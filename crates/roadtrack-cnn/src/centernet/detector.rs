@@ -69,7 +69,7 @@ pub struct CenterNetConfig {
     pub nested: NestedConfig,
     /// Test-time flip: the network also runs on the frame mirrored left–right and each
     /// cell's heat, log size and offsets are the mean of the two runs (mirrored back,
-    /// [`average_mirrored`]). Twice the compute. Default on.
+    /// [`average_flipped`]). Twice the compute. Default on.
     pub flip: bool,
     /// Test-time flip upside down too: with [`CenterNetConfig::flip`] four runs (as is,
     /// mirrored, upside down, both), else two. For nadir views, where nothing has an up.
@@ -647,11 +647,6 @@ pub fn merge_levels(
     out
 }
 
-/// `input` (`3 × h × w`, row-major) mirrored left–right.
-pub fn mirror_input(input: &[f32], h: usize, w: usize) -> Vec<f32> {
-    flip_input(input, h, w, true, false)
-}
-
 /// `input` (`3 × h × w`, row-major) mirrored left–right (`x`) and/or upside down (`y`).
 pub fn flip_input(input: &[f32], h: usize, w: usize, x: bool, y: bool) -> Vec<f32> {
     let mut out = Vec::with_capacity(input.len());
@@ -666,16 +661,6 @@ pub fn flip_input(input: &[f32], h: usize, w: usize, x: bool, y: bool) -> Vec<f3
         }
     }
     out
-}
-
-/// [`average_flipped`] with one view, the input mirrored left–right.
-pub fn average_mirrored(
-    heat: &mut tract_ndarray::ArrayD<f32>,
-    boxes: &mut tract_ndarray::ArrayD<f32>,
-    mh: &tract_ndarray::ArrayD<f32>,
-    mb: &tract_ndarray::ArrayD<f32>,
-) {
-    average_flipped(heat, boxes, &[(mh.clone(), mb.clone(), true, false)]);
 }
 
 /// Folds the outputs of flipped inputs (`views`: heat, boxes, mirrored left–right, upside

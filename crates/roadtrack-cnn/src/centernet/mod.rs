@@ -19,9 +19,8 @@ mod tests;
 
 pub use detector::{
     CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_CAR_LENGTH_M,
-    ZOOM_OVERLAP_IOU, add_zoomed, average_flipped, average_mirrored, decode_peaks,
-    default_model_path, drop_nested, flip_input, merge_levels, mirror_input, score_map_of, shrink,
-    zoom_rows,
+    ZOOM_OVERLAP_IOU, add_zoomed, average_flipped, decode_peaks, default_model_path, drop_nested,
+    flip_input, merge_levels, score_map_of, shrink, zoom_rows,
 };
 
 use std::path::Path;

@@ -489,7 +489,7 @@ fn mirrored_outputs_fold_back_onto_their_cells() {
         if i[1] == 2 { 1.0 - v } else { v }
     });
     let (mut h2, mut b2) = (heat.clone(), boxes.clone());
-    average_mirrored(&mut h2, &mut b2, &mh, &mb);
+    average_flipped(&mut h2, &mut b2, &[(mh, mb, true, false)]);
     for (x, y) in h2
         .iter()
         .zip(heat.iter())
@@ -500,11 +500,15 @@ fn mirrored_outputs_fold_back_onto_their_cells() {
     // A mirrored run that disagrees moves each value half way.
     let zeros = ArrayD::<f32>::zeros(IxDyn(&[1, 4, rows, cols]));
     let (mut h3, mut b3) = (heat.clone(), boxes.clone());
-    average_mirrored(
+    average_flipped(
         &mut h3,
         &mut b3,
-        &ArrayD::zeros(IxDyn(&[1, CLASSES, rows, cols])),
-        &zeros,
+        &[(
+            ArrayD::zeros(IxDyn(&[1, CLASSES, rows, cols])),
+            zeros,
+            true,
+            false,
+        )],
     );
     assert!((h3[IxDyn(&[0, 1, 1, 2])] - 0.5 * f(1, 1, 2)).abs() < 1e-6);
     // x offset: the mirrored run's 0 means 1 at this cell.
@@ -512,9 +516,9 @@ fn mirrored_outputs_fold_back_onto_their_cells() {
     assert!((b3[IxDyn(&[0, 3, 0, 0])] - 0.5 * f(3, 0, 0)).abs() < 1e-6);
     // The input mirror is an involution that reverses each row.
     let input: Vec<f32> = (0..3 * 2 * 4).map(|v| v as f32).collect();
-    let once = mirror_input(&input, 2, 4);
+    let once = flip_input(&input, 2, 4, true, false);
     assert_eq!(&once[..4], &[3.0, 2.0, 1.0, 0.0]);
-    assert_eq!(mirror_input(&once, 2, 4), input);
+    assert_eq!(flip_input(&once, 2, 4, true, false), input);
 }
 
 /// Bounds of the shipped model's test (the committed model: 16/22 and 25/26; a blank or
