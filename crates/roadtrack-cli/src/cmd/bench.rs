@@ -100,38 +100,32 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             };
             let path = default_model_path();
             if path.is_file() {
-                let mut det = CenterNetDetector::load(&path, &CenterNetConfig::default())?;
-                results.push(bench::detect_with(
-                    "detect-cnn",
-                    "generated 640×480, 12 boxes",
-                    &generated,
-                    &mut det,
-                )?);
-                // Without the test-time flip (`--no-flip`): half the compute.
-                let single = CenterNetConfig {
-                    flip: false,
-                    ..CenterNetConfig::default()
-                };
-                let mut det = CenterNetDetector::load(&path, &single)?;
-                results.push(bench::detect_with(
-                    "detect-cnn --no-flip",
-                    "generated 640×480, 12 boxes",
-                    &generated,
-                    &mut det,
-                )?);
-                // With the zoomed level (`--zoom-small 12`): four times the full-size
+                // The defaults; without the test-time flip (`--no-flip`): half the compute;
+                // with the zoomed level (`--zoom-small 12`): four times the full-size
                 // level's compute.
-                let zoom = CenterNetConfig {
-                    zoom_max_side: 12.0,
-                    ..CenterNetConfig::default()
-                };
-                let mut det = CenterNetDetector::load(&path, &zoom)?;
-                results.push(bench::detect_with(
-                    "detect-cnn --zoom-small 12",
-                    "generated 640×480, 12 boxes",
-                    &generated,
-                    &mut det,
-                )?);
+                let d = CenterNetConfig::default;
+                for (name, config) in [
+                    ("detect-cnn", d()),
+                    (
+                        "detect-cnn --no-flip",
+                        CenterNetConfig { flip: false, ..d() },
+                    ),
+                    (
+                        "detect-cnn --zoom-small 12",
+                        CenterNetConfig {
+                            zoom_max_side: 12.0,
+                            ..d()
+                        },
+                    ),
+                ] {
+                    let mut det = CenterNetDetector::load(&path, &config)?;
+                    results.push(bench::detect_with(
+                        name,
+                        "generated 640×480, 12 boxes",
+                        &generated,
+                        &mut det,
+                    )?);
+                }
             }
         }
     }

@@ -680,42 +680,34 @@ pub fn average_flipped(
         bool,
     )],
 ) {
+    fold_flipped(heat, views.iter().map(|(h, _, x, y)| (h, *x, *y)), false);
+    fold_flipped(boxes, views.iter().map(|(_, b, x, y)| (b, *x, *y)), true);
+}
+
+/// One output of [`average_flipped`]: `out` becomes the mean of itself and each view read
+/// at the mirrored cell; with `offsets`, channel 2 (`dx`) of a left–right view and channel
+/// 3 (`dy`) of an upside-down one are read as `1 − v`.
+fn fold_flipped<'a>(
+    out: &mut tract_ndarray::ArrayD<f32>,
+    views: impl Iterator<Item = (&'a tract_ndarray::ArrayD<f32>, bool, bool)> + Clone,
+    offsets: bool,
+) {
     use tract_ndarray::IxDyn;
-    let shape = heat.shape().to_vec();
+    let shape = out.shape().to_vec();
     let (ch, rows, cols) = (shape[1], shape[2], shape[3]);
-    let n = (views.len() + 1) as f32;
+    let n = (views.clone().count() + 1) as f32;
     for k in 0..ch {
         for r in 0..rows {
             for c in 0..cols {
-                let mut sum = heat[IxDyn(&[0, k, r, c])];
-                for (mh, _, x, y) in views {
-                    let (rr, cc) = (
-                        if *y { rows - 1 - r } else { r },
-                        if *x { cols - 1 - c } else { c },
-                    );
-                    sum += mh[IxDyn(&[0, k, rr, cc])];
+                let mut sum = out[IxDyn(&[0, k, r, c])];
+                for (m, x, y) in views.clone() {
+                    let rr = if y { rows - 1 - r } else { r };
+                    let cc = if x { cols - 1 - c } else { c };
+                    let v = m[IxDyn(&[0, k, rr, cc])];
+                    let turned = offsets && ((k == 2 && x) || (k == 3 && y));
+                    sum += if turned { 1.0 - v } else { v };
                 }
-                heat[IxDyn(&[0, k, r, c])] = sum / n;
-            }
-        }
-    }
-    for k in 0..4 {
-        for r in 0..rows {
-            for c in 0..cols {
-                let mut sum = boxes[IxDyn(&[0, k, r, c])];
-                for (_, mb, x, y) in views {
-                    let (rr, cc) = (
-                        if *y { rows - 1 - r } else { r },
-                        if *x { cols - 1 - c } else { c },
-                    );
-                    let v = mb[IxDyn(&[0, k, rr, cc])];
-                    sum += if (k == 2 && *x) || (k == 3 && *y) {
-                        1.0 - v
-                    } else {
-                        v
-                    };
-                }
-                boxes[IxDyn(&[0, k, r, c])] = sum / n;
+                out[IxDyn(&[0, k, r, c])] = sum / n;
             }
         }
     }

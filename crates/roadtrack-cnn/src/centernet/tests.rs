@@ -328,17 +328,10 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     }
 }
 
-/// With the test-time flip the detector is mirror-equivariant: the boxes of a mirrored
-/// frame are the mirrored boxes of the frame (same classes and scores), as both runs see
-/// the same two inputs.
-#[test]
-fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
+/// A held-out 640 × 480 aerial road render (seed 23): both sides multiples of 32, so the
+/// padding of both pyramid levels does not break the frame's symmetries.
+fn held_out_aerial_frame() -> Result<RgbImage> {
     use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
-    let cfg = CenterNetConfig {
-        flip: true,
-        ..Default::default()
-    };
-    let det = CenterNetDetector::load(&shipped(), &cfg)?;
     let sim = SimConfig {
         scene: SceneKind::Road,
         view: ViewKind::Aerial,
@@ -346,39 +339,40 @@ fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
         ..SimConfig::default()
     };
     let run = roadtrack_sim::simulate_in_memory(&sim, 23)?;
-    let image = &run.frames[0].image;
-    // 640 px: a multiple of 16 at both pyramid levels, so padding does not break symmetry.
-    assert_eq!(image.width() % 32, 0);
-    let mirrored = image::imageops::flip_horizontal(image);
-    let w = f64::from(image.width());
-    let key = |b: &roadtrack::geometry::BBox, c: &roadtrack::class::ObjectClass, s: f64| {
-        (b.left, b.top, b.width, b.height, c.clone(), s)
+    let image = run.frames[0].image.clone();
+    assert_eq!((image.width() % 32, image.height() % 32), (0, 0));
+    Ok(image)
+}
+
+/// Asserts that `det` finds on `flipped` (the frame turned by `flip`) the boxes it finds on
+/// `image` turned by `unflip`: same boxes within 1e-3 px, classes, scores within 1e-6.
+fn assert_equivariant(
+    det: &CenterNetDetector,
+    image: &RgbImage,
+    flipped: &RgbImage,
+    unflip: impl Fn(&roadtrack::geometry::BBox) -> roadtrack::geometry::BBox,
+) -> Result<()> {
+    type Key = (f64, f64, f64, f64, roadtrack::class::ObjectClass, f64);
+    let keys = |v: Vec<(
+        roadtrack::geometry::BBox,
+        roadtrack::class::ObjectClass,
+        f64,
+    )>,
+                turn: &dyn Fn(&roadtrack::geometry::BBox) -> roadtrack::geometry::BBox|
+     -> Vec<Key> {
+        let mut k: Vec<Key> = v
+            .iter()
+            .map(|(b, c, s)| {
+                let b = turn(b);
+                (b.left, b.top, b.width, b.height, c.clone(), *s)
+            })
+            .collect();
+        k.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+        k
     };
-    let mut a: Vec<_> = det
-        .detect_boxes(image)?
-        .iter()
-        .map(|(b, c, s)| key(b, c, *s))
-        .collect();
-    let mut m: Vec<_> = det
-        .detect_boxes(&mirrored)?
-        .iter()
-        .map(|(b, c, s)| {
-            (
-                w - b.left - b.width,
-                b.top,
-                b.width,
-                b.height,
-                c.clone(),
-                *s,
-            )
-        })
-        .collect();
+    let a = keys(det.detect_boxes(image)?, &|b| *b);
+    let m = keys(det.detect_boxes(flipped)?, &unflip);
     assert!(a.len() >= 5, "{a:?}");
-    let order = |v: &mut Vec<(f64, f64, f64, f64, roadtrack::class::ObjectClass, f64)>| {
-        v.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
-    };
-    order(&mut a);
-    order(&mut m);
     assert_eq!(a.len(), m.len());
     for (p, q) in a.iter().zip(&m) {
         let close = (p.0 - q.0).abs() < 1e-3
@@ -386,8 +380,28 @@ fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
             && (p.2 - q.2).abs() < 1e-3
             && (p.3 - q.3).abs() < 1e-3
             && (p.5 - q.5).abs() < 1e-6;
-        assert!(close && p.4 == q.4, "{p:?} vs mirrored {q:?}");
+        assert!(close && p.4 == q.4, "{p:?} vs flipped {q:?}");
     }
+    Ok(())
+}
+
+/// With the test-time flip the detector is mirror-equivariant: the boxes of a mirrored
+/// frame are the mirrored boxes of the frame (same classes and scores), as both runs see
+/// the same two inputs.
+#[test]
+fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
+    let cfg = CenterNetConfig {
+        flip: true,
+        ..Default::default()
+    };
+    let det = CenterNetDetector::load(&shipped(), &cfg)?;
+    let image = held_out_aerial_frame()?;
+    let mirrored = image::imageops::flip_horizontal(&image);
+    let w = f64::from(image.width());
+    let unmirror = |b: &roadtrack::geometry::BBox| {
+        roadtrack::geometry::BBox::new(w - b.left - b.width, b.top, b.width, b.height)
+    };
+    assert_equivariant(&det, &image, &mirrored, unmirror)?;
     // Without the flip the network alone is not: some box moves.
     let plain = CenterNetDetector::load(
         &shipped(),
@@ -396,7 +410,7 @@ fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
             ..Default::default()
         },
     )?;
-    let one: Vec<_> = plain.detect_boxes(image)?;
+    let one: Vec<_> = plain.detect_boxes(&image)?;
     let other: Vec<_> = plain.detect_boxes(&mirrored)?;
     let moved = one.len() != other.len()
         || one.iter().any(|(b, _, _)| {
@@ -414,50 +428,18 @@ fn with_the_flip_a_mirrored_frame_gives_the_mirrored_boxes() -> Result<()> {
 /// With both flips the detector is equivariant under turning the frame upside down too.
 #[test]
 fn with_both_flips_an_upside_down_frame_gives_the_upside_down_boxes() -> Result<()> {
-    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
     let cfg = CenterNetConfig {
         flip_vertical: true,
         ..Default::default()
     };
     let det = CenterNetDetector::load(&shipped(), &cfg)?;
-    let sim = SimConfig {
-        scene: SceneKind::Road,
-        view: ViewKind::Aerial,
-        frames: 1,
-        ..SimConfig::default()
-    };
-    let run = roadtrack_sim::simulate_in_memory(&sim, 23)?;
-    let image = &run.frames[0].image;
-    // 480 px: a multiple of 16 at both pyramid levels.
-    assert_eq!(image.height() % 32, 0);
-    let upside_down = image::imageops::flip_vertical(image);
+    let image = held_out_aerial_frame()?;
+    let upside_down = image::imageops::flip_vertical(&image);
     let h = f64::from(image.height());
-    let sorted = |mut v: Vec<(f64, f64, f64, f64, f64)>| {
-        v.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
-        v
+    let unturn = |b: &roadtrack::geometry::BBox| {
+        roadtrack::geometry::BBox::new(b.left, h - b.top - b.height, b.width, b.height)
     };
-    let a = sorted(
-        det.detect_boxes(image)?
-            .iter()
-            .map(|(b, _, s)| (b.left, b.top, b.width, b.height, *s))
-            .collect(),
-    );
-    let m = sorted(
-        det.detect_boxes(&upside_down)?
-            .iter()
-            .map(|(b, _, s)| (b.left, h - b.top - b.height, b.width, b.height, *s))
-            .collect(),
-    );
-    assert!(a.len() >= 5, "{a:?}");
-    assert_eq!(a.len(), m.len());
-    for (p, q) in a.iter().zip(&m) {
-        let close = (p.0 - q.0).abs() < 1e-3
-            && (p.1 - q.1).abs() < 1e-3
-            && (p.2 - q.2).abs() < 1e-3
-            && (p.3 - q.3).abs() < 1e-3
-            && (p.4 - q.4).abs() < 1e-6;
-        assert!(close, "{p:?} vs upside down {q:?}");
-    }
+    assert_equivariant(&det, &image, &upside_down, unturn)?;
     // The input flips are involutions.
     let input: Vec<f32> = (0..3 * 2 * 4).map(|v| v as f32).collect();
     for (x, y) in [(true, false), (false, true), (true, true)] {
