@@ -321,12 +321,13 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", stderr(&o));
-    // --steps, --init and --sim-seed-base belong to --detector.
+    // --steps, --init, --sim-seed-base and --clip-to-crop belong to --detector.
     for flags in [
-        ["--steps", "3"],
-        ["--init", "w.json"],
-        ["--sim-seed-base", "5000"],
-        ["--weights-out", "w.json"],
+        &["--steps", "3"][..],
+        &["--init", "w.json"],
+        &["--sim-seed-base", "5000"],
+        &["--weights-out", "w.json"],
+        &["--clip-to-crop"],
     ] {
         let o = bin()
             .args(["train", "--sequence", "x"])

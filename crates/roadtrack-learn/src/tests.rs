@@ -135,6 +135,106 @@ fn zoomed_out_crops_shrink_objects_by_the_drawn_scale() {
 }
 
 #[test]
+fn boxes_are_clipped_to_the_crop_as_the_truth_is_to_the_frame() {
+    use crate::data::{Object, TrainFrame, crop_box, make_sample};
+    use rand::SeedableRng;
+    use roadtrack::geometry::BBox;
+    let data = DataConfig {
+        clip_to_crop: true,
+        ..DataConfig::default()
+    };
+    // A 40 × 20 box, its left half outside a crop at (100, 50), 1 frame px per crop px.
+    let b = BBox::new(80.0, 60.0, 40.0, 20.0);
+    let (x, y, w, h, f) = crop_box(&b, 100.0, 50.0, 1.0, 128.0, false, &data).unwrap();
+    assert_eq!((x, y, w, h), (10.0, 20.0, 20.0, 20.0));
+    assert!((f - 0.5).abs() < 1e-12);
+    // Mirrored: the same box at the right edge.
+    let (x, _, w, _, _) = crop_box(&b, 100.0, 50.0, 1.0, 128.0, true, &data).unwrap();
+    assert_eq!((x, w), (118.0, 20.0));
+    // Whole boxes (the default): centre outside the crop, no target at all.
+    let whole = DataConfig {
+        clip_to_crop: false,
+        ..data
+    };
+    let mostly_out = BBox::new(70.0, 60.0, 40.0, 20.0);
+    assert!(crop_box(&mostly_out, 100.0, 50.0, 1.0, 128.0, false, &whole).is_none());
+    let (.., f) = crop_box(&mostly_out, 100.0, 50.0, 1.0, 128.0, false, &data).unwrap();
+    assert!((f - 0.25).abs() < 1e-12);
+    let inside = BBox::new(110.0, 60.0, 40.0, 20.0);
+    assert_eq!(
+        crop_box(&inside, 100.0, 50.0, 1.0, 128.0, false, &whole),
+        crop_box(&inside, 100.0, 50.0, 1.0, 128.0, false, &data)
+    );
+    assert!(
+        crop_box(
+            &BBox::new(300.0, 60.0, 4.0, 4.0),
+            100.0,
+            50.0,
+            1.0,
+            128.0,
+            false,
+            &data
+        )
+        .is_none()
+    );
+
+    // A 200 × 80 px car, larger than any ordinary crop: with clipping every positive's box
+    // lies inside its crop, and crops that hold only part of the car still get a target.
+    let frame = TrainFrame {
+        image: image::RgbImage::from_pixel(640, 480, image::Rgb([90, 90, 90])),
+        objects: vec![Object {
+            bbox: BBox::new(220.0, 200.0, 200.0, 80.0),
+            channel: 0,
+            visibility: 1.0,
+        }],
+    };
+    let prep = crate::train::training_preprocessing();
+    let boxes = |d: &DataConfig| -> Vec<[f64; 4]> {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let g = d.crop / 4;
+        let plane = g * g;
+        let mut out = Vec::new();
+        for _ in 0..300 {
+            let s = make_sample(&frame, &mut rng, d, &prep);
+            if let Some(i) = (0..plane).find(|&i| s.pos[i] > 0.0) {
+                let (ix, iy) = ((i % g) as f64, (i / g) as f64);
+                let w = 4.0 * f64::from(s.reg[i]).exp();
+                let h = 4.0 * f64::from(s.reg[plane + i]).exp();
+                let cx = 4.0 * (ix + f64::from(s.reg[2 * plane + i]));
+                let cy = 4.0 * (iy + f64::from(s.reg[3 * plane + i]));
+                out.push([cx - w / 2.0, cy - h / 2.0, cx + w / 2.0, cy + h / 2.0]);
+            }
+        }
+        out
+    };
+    let ordinary = DataConfig {
+        zoom_out_share: 0.0,
+        ..data
+    };
+    let clipped = boxes(&ordinary);
+    let side = ordinary.crop as f64 + 1e-3;
+    assert!(
+        clipped
+            .iter()
+            .all(|b| b.iter().all(|&v| (-1e-3..=side).contains(&v))),
+        "{clipped:?}"
+    );
+    let kept_whole = boxes(&DataConfig {
+        clip_to_crop: false,
+        ..ordinary
+    });
+    assert!(kept_whole.iter().any(|b| b[0] < -1.0 || b[2] > side + 1.0));
+    // The same crops (the targets draw nothing from the generator): the clipped ones add
+    // the crops whose view of the car leaves its centre out.
+    assert!(
+        clipped.len() > kept_whole.len(),
+        "{} against {}",
+        clipped.len(),
+        kept_whole.len()
+    );
+}
+
+#[test]
 fn bad_crop_scales_are_refused_by_name() {
     for (data, field) in [
         (
@@ -150,6 +250,13 @@ fn bad_crop_scales_are_refused_by_name() {
                 ..DataConfig::default()
             },
             "zoom_out",
+        ),
+        (
+            DataConfig {
+                min_in_crop: 1.5,
+                ..DataConfig::default()
+            },
+            "min_in_crop",
         ),
     ] {
         let cfg = TrainConfig {

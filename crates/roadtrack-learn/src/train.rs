@@ -122,6 +122,12 @@ impl TrainConfig {
                 ),
             );
         }
+        if !(0.0..=1.0).contains(&d.min_in_crop) {
+            return bad(
+                "min_in_crop",
+                format!("must be in [0, 1], got {}", d.min_in_crop),
+            );
+        }
         if let Some(w) = &self.init {
             w.validate()?;
             if w.preprocessing != training_preprocessing() {

@@ -39,6 +39,11 @@ pub struct DetectorTrainArgs {
     /// stage takes seeds the first did not use.
     #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<u64>::new().range(4..))]
     pub sim_seed_base: Option<u64>,
+    /// --detector: clip each object's box to the crop, as the ground truth clips boxes to
+    /// the frame (by default a box is whole, and an object whose centre falls outside the
+    /// crop is left out). Tried as a fifth stage and not kept (docs/EXPERIMENTS.md).
+    #[arg(long)]
+    pub clip_to_crop: bool,
     /// --detector: write every step's losses to this CSV (step, learning_rate, heat, boxes,
     /// total).
     #[arg(long, value_name = "F.csv")]
@@ -58,6 +63,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--init", a.init.is_some()),
             ("--weights-out", a.weights_out.is_some()),
             ("--sim-seed-base", a.sim_seed_base.is_some()),
+            ("--clip-to-crop", a.clip_to_crop),
         ],
         "only with --detector",
     )
@@ -122,6 +128,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     if let Some(v) = d.crop {
         config.data.crop = v;
     }
+    config.data.clip_to_crop = d.clip_to_crop;
     if let Some(v) = args.batch_size {
         config.batch = v;
     }
