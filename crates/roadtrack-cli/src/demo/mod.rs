@@ -12,6 +12,7 @@ use anyhow::{Context, Result};
 use roadtrack::analysis::ground::{GroundStage, OffGroundFilter};
 use roadtrack::analysis::{self, Analysis, Coordinates, CountLine, Site, StitchConfig, Zone};
 use roadtrack::calibration::Calibration;
+use roadtrack::detect::FrameDetections;
 use roadtrack::eval::{self, ClassMode, EvalConfig};
 use roadtrack::io::{self, SourceOptions, mot, sink, source};
 use roadtrack::track::confirm::{LifecycleConfig, LifecycleStage};
@@ -241,6 +242,9 @@ struct Shared<'a> {
     truth: &'a [TrackPoint],
     truth_analysis: &'a Analysis,
     background: Option<&'a image::RgbImage>,
+    /// The detections of a detector that looks at each frame alone, found once and given
+    /// to every method ([`detect_once`]); `None`: each method runs its detector.
+    detections: Option<std::sync::Arc<[FrameDetections]>>,
 }
 
 /// Runs the demo into `dir`; `step` is told what is being done.
@@ -268,7 +272,13 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         Some(r) => r.clone(),
         None => demo_relaxation()?,
     };
+    let detect_t0 = std::time::Instant::now();
+    let detections = detect_once(cfg, &seq, step)?;
+    let detect_seconds = detections
+        .as_ref()
+        .map(|_| detect_t0.elapsed().as_secs_f64());
     let shared = Shared {
+        detections: detections.map(std::sync::Arc::from),
         cfg,
         relaxation: &relaxation,
         dir,
@@ -306,6 +316,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         cycle_s: cycle_s(&sim_cfg),
         detector: crate::common::detector_name(&cfg.detector),
         detector_given: cfg.detector.detector.is_some() || cfg.detector.is_file(),
+        detect_seconds,
     };
     let page = report::page(&facts, &truth_analysis, &runs);
     let report = dir.join("report.md");
@@ -326,6 +337,68 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         report,
         methods: results,
     })
+}
+
+/// With `--detector cnn` or `onnx` (no motion gate): runs the detector once over the
+/// sequence, its frames spread over the threads, and returns every frame's detections.
+/// `None` for the other detectors: a background model or a motion gate takes each
+/// method's own background settings, and a detections file costs nothing to reread.
+// Choice: the learned detector is most of the demo's compute; it looks at each frame
+// alone, so the four methods get the same detections whether it runs four times or once.
+fn detect_once(
+    cfg: &DemoConfig,
+    seq: &Path,
+    step: &mut dyn FnMut(&str),
+) -> Result<Option<Vec<FrameDetections>>> {
+    use crate::common::DetectorArg;
+    if !matches!(
+        cfg.detector.detector,
+        Some(DetectorArg::Cnn | DetectorArg::Onnx)
+    ) || cfg.detector.motion_gate.is_some()
+    {
+        return Ok(None);
+    }
+    let name = crate::common::detector_name(&cfg.detector);
+    step(&format!("detecting with {name} (once, for every method)"));
+    // Not called: neither detector nor the absent gate needs background settings.
+    let Some(spec) = cfg
+        .detector
+        .spec(seq, None, || Ok(Default::default()))
+        .context("the demo's detector")?
+    else {
+        return Ok(None);
+    };
+    let options = SourceOptions::default();
+    let info = source::open(seq, &options)?.info.clone();
+    let mut detector = spec.build(seq, &options, &info)?;
+    let mut frames = source::open(seq, &options)?;
+    let mut batch = Vec::new();
+    let mut out = Vec::new();
+    while roadtrack::detect::next_batch(&mut frames, detector.batch_len(), &mut batch)? {
+        out.extend(roadtrack::detect::detect_checked(
+            detector.as_mut(),
+            &batch,
+        )?);
+    }
+    Ok(Some(out))
+}
+
+/// [`detect_once`]'s detections given back frame by frame, in order.
+struct Replay {
+    found: std::sync::Arc<[FrameDetections]>,
+    next: usize,
+}
+
+impl roadtrack::detect::Detector for Replay {
+    fn detect(&mut self, frame: &roadtrack::frame::Frame) -> roadtrack::Result<FrameDetections> {
+        self.next += 1;
+        self.found.get(self.next - 1).cloned().ok_or_else(|| {
+            roadtrack::Error::Invalid(format!(
+                "internal error: no detections kept for frame {}",
+                frame.index
+            ))
+        })
+    }
 }
 
 /// Runs every method (two or more at a time where the machine has the cores), in the
@@ -386,10 +459,16 @@ fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
     }
     .with_calibration(sh.calibration);
     let own = config.background_detector();
-    let detector = cfg
-        .detector
-        .spec(sh.seq, None, || Ok(own))
-        .with_context(|| format!("the detector of {name}"))?;
+    let detector = match &sh.detections {
+        Some(found) => Some(roadtrack::detect::DetectorSpec::Given(Box::new(Replay {
+            found: std::sync::Arc::clone(found),
+            next: 0,
+        }))),
+        None => cfg
+            .detector
+            .spec(sh.seq, None, || Ok(own))
+            .with_context(|| format!("the detector of {name}"))?,
+    };
     let t0 = std::time::Instant::now();
     let mut points: Vec<TrackPoint> = Vec::new();
     track_source(
@@ -534,6 +613,48 @@ mod tests {
     }
 
     /// One whole signal cycle fits the default demo.
+    /// `--detector cnn`: the detections found once are what each method's own detector
+    /// finds, frame by frame; the background detector is not shared.
+    #[cfg(feature = "cnn")]
+    #[test]
+    fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
+        use crate::common::DetectorArg;
+        use roadtrack::detect::Detector as _;
+        let dir = tempfile::tempdir()?;
+        let seq = dir.path().join("sequence");
+        roadtrack_sim::simulate(&demo_sim_config(12, DEFAULT_FPS), 0, &seq, &mut |_, _| {})?;
+        let cfg = DemoConfig {
+            detector: DetectorArgs {
+                detector: Some(DetectorArg::Cnn),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let found = detect_once(&cfg, &seq, &mut |_| {})?.context("cnn runs once")?;
+        let spec = cfg
+            .detector
+            .spec(&seq, None, || Ok(Default::default()))?
+            .context("a detector")?;
+        let options = SourceOptions::default();
+        let info = source::open(&seq, &options)?.info.clone();
+        let mut own = spec.build(&seq, &options, &info)?;
+        let mut replay = Replay {
+            found: found.clone().into(),
+            next: 0,
+        };
+        let mut last = None;
+        for frame in source::open(&seq, &options)? {
+            let frame = frame?;
+            assert_eq!(replay.detect(&frame)?, own.detect(&frame)?);
+            last = Some(frame);
+        }
+        assert_eq!(found.len(), 12);
+        assert!(found.iter().any(|f| !f.detections.is_empty()));
+        assert!(replay.detect(&last.context("frames")?).is_err());
+        assert!(detect_once(&DemoConfig::default(), &seq, &mut |_| {})?.is_none());
+        Ok(())
+    }
+
     #[test]
     fn the_default_demo_holds_a_whole_signal_cycle() {
         let sim = demo_sim_config(DEFAULT_FRAMES, DEFAULT_FPS);

@@ -22,6 +22,9 @@ pub struct Facts {
     pub detector: String,
     /// Whether `--detector` was given (else each method's own background detector).
     pub detector_given: bool,
+    /// Seconds the detector took when it ran once for every method (`--detector cnn`,
+    /// `onnx`); `None` when each method ran its own.
+    pub detect_seconds: Option<f64>,
 }
 
 /// `summary.json`.
@@ -108,10 +111,14 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
             percent(r.movement_error)
         );
     }
-    let detector = if facts.detector_given {
-        format!("`--detector {}`", facts.detector)
-    } else {
-        "each method's own background detector".into()
+    let detector = match (facts.detector_given, facts.detect_seconds) {
+        (true, Some(t)) => format!(
+            "`--detector {}`, run once for every method ({t:.1} s; the methods' times below \
+             leave it out)",
+            facts.detector
+        ),
+        (true, None) => format!("`--detector {}`", facts.detector),
+        (false, _) => "each method's own background detector".into(),
     };
     let _ = writeln!(
         page,
