@@ -692,24 +692,38 @@ fn fold_flipped<'a>(
     views: impl Iterator<Item = (&'a tract_ndarray::ArrayD<f32>, bool, bool)> + Clone,
     offsets: bool,
 ) {
-    use tract_ndarray::IxDyn;
+    use std::borrow::Cow;
     let shape = out.shape().to_vec();
     let (ch, rows, cols) = (shape[1], shape[2], shape[3]);
     let n = (views.clone().count() + 1) as f32;
+    // Choice: flat row-major copies, not `IxDyn` indexing per cell, which cost a tenth of a
+    // flipped frame's time; the sums run in the same order, so the result is the same.
+    let flat = |a: &'a tract_ndarray::ArrayD<f32>| -> Cow<'a, [f32]> {
+        match a.as_slice() {
+            Some(s) => Cow::Borrowed(s),
+            None => Cow::Owned(a.iter().copied().collect()),
+        }
+    };
+    let views: Vec<(Cow<'a, [f32]>, bool, bool)> = views.map(|(m, x, y)| (flat(m), x, y)).collect();
+    let mut folded: Vec<f32> = out.iter().copied().collect();
     for k in 0..ch {
         for r in 0..rows {
+            let row = (k * rows + r) * cols;
             for c in 0..cols {
-                let mut sum = out[IxDyn(&[0, k, r, c])];
-                for (m, x, y) in views.clone() {
-                    let rr = if y { rows - 1 - r } else { r };
-                    let cc = if x { cols - 1 - c } else { c };
-                    let v = m[IxDyn(&[0, k, rr, cc])];
-                    let turned = offsets && ((k == 2 && x) || (k == 3 && y));
+                let mut sum = folded[row + c];
+                for (m, x, y) in &views {
+                    let rr = if *y { rows - 1 - r } else { r };
+                    let cc = if *x { cols - 1 - c } else { c };
+                    let v = m[(k * rows + rr) * cols + cc];
+                    let turned = offsets && ((k == 2 && *x) || (k == 3 && *y));
                     sum += if turned { 1.0 - v } else { v };
                 }
-                out[IxDyn(&[0, k, r, c])] = sum / n;
+                folded[row + c] = sum / n;
             }
         }
+    }
+    for (o, v) in out.iter_mut().zip(folded) {
+        *o = v;
     }
 }
 

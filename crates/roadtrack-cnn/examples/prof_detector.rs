@@ -1,0 +1,58 @@
+//! Per-operation time of an ONNX model in tract's optimised plan, single-threaded: where a
+//! detector's inference goes (docs/PERFORMANCE.md "Where the learned detector's time goes").
+//!
+//!     cargo run --release -p roadtrack-cnn --example prof_detector -- models/detector.onnx [H W]
+//!
+//! Runs 30 passes on a constant `1 × 3 × H × W` input (default 480 × 640) and prints, per
+//! node, the fastest of its 30 times, and the fastest whole pass.
+
+use prost::Message as _;
+use std::collections::BTreeMap;
+use std::time::Instant;
+use tract_onnx::pb;
+use tract_onnx::prelude::*;
+use tract_onnx::tract_core::plan::{SimpleState, eval};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let path = args.get(1).ok_or("usage: prof_detector MODEL.onnx [H W]")?;
+    let h: usize = args.get(2).map_or(Ok(480), |s| s.parse())?;
+    let w: usize = args.get(3).map_or(Ok(640), |s| s.parse())?;
+    let proto = pb::ModelProto::decode(std::fs::read(path)?.as_slice())?;
+    let plan = tract_onnx::onnx()
+        .model_for_proto_model(&proto)?
+        .with_input_fact(0, f32::fact([1, 3, h, w]).into())?
+        .into_optimized()?
+        .into_runnable()?;
+    let input = Tensor::from_shape(&[1, 3, h, w], &vec![0.1f32; 3 * h * w])?;
+    let mut best: BTreeMap<usize, (String, f64)> = BTreeMap::new();
+    let mut total = f64::MAX;
+    for _ in 0..30 {
+        let mut state = SimpleState::new(&plan)?;
+        let mut times = Vec::new();
+        let t0 = Instant::now();
+        state.run_plan_with_eval(tvec![input.clone().into()], |ctx, st, node, inp| {
+            let t = Instant::now();
+            let r = eval(ctx, st, node, inp);
+            times.push((
+                node.id,
+                format!("{} {}", node.name, node.op().name()),
+                t.elapsed().as_secs_f64() * 1e3,
+            ));
+            r
+        })?;
+        total = total.min(t0.elapsed().as_secs_f64() * 1e3);
+        for (id, name, t) in times {
+            let e = best.entry(id).or_insert((name, f64::MAX));
+            e.1 = e.1.min(t);
+        }
+    }
+    let sum: f64 = best.values().map(|v| v.1).sum();
+    println!("fastest pass {total:.2} ms; sum of the nodes' fastest {sum:.2} ms");
+    for (id, (name, t)) in best {
+        if t > 0.05 {
+            println!("{id:3} {name:50} {t:7.2} ms");
+        }
+    }
+    Ok(())
+}
