@@ -86,10 +86,23 @@ fn demo_reports_every_method_best_first_with_pictures_and_counts() {
         header,
         format!("| line, direction | truth | {} |", names.join(" | "))
     );
+    // The default detector: the learned one without the mirror, run once for all.
     assert!(
-        page.contains("each method's own background detector"),
+        page.contains("`--detector cnn --no-flip` (the demo's default")
+            && page.contains("run once for every method"),
         "{page}"
     );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).expect("json"))
+            .expect("summary.json");
+    assert_eq!(summary["detector"].as_str(), Some("cnn"));
+    assert_eq!(summary["detector_default"].as_bool(), Some(true));
+    assert!(summary["detect_seconds"].as_f64().is_some_and(|t| t > 0.0));
+    // Each method's own background detector, when asked for.
+    let out = dir.path().join("demo_bg");
+    let page = demo(&out, &["--frames", "20", "--detector", "background"]);
+    assert!(page.contains("`--detector background`"), "{page}");
+    assert!(!page.contains("default"), "{page}");
 }
 
 /// With the sequence's own detections, over long enough for a car to cross the junction:

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 /// method's counts and turning movements beside the truth's.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack demo -o demo/ && less demo/report.md\n  roadtrack demo --detector file -o demo_det/   # the sequence's det/det.txt"
+    after_help = "Example:\n  roadtrack demo -o demo/ && less demo/report.md   # the learned detector, without the mirror\n  roadtrack demo --detector file -o demo_det/   # the sequence's det/det.txt\n  roadtrack demo --detector background -o demo_bg/   # each method's own background detector"
 )]
 pub struct Args {
     /// Output folder.
@@ -46,12 +46,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         args.detector
             .spec(&args.output, None, || Ok(Default::default()))?;
     }
+    let given = args.detector.detector.is_some() || args.detector.is_file();
     let cfg = DemoConfig {
         frames: args.frames,
         fps: args.fps,
         seed: args.seed,
         video: !args.no_video,
-        detector: args.detector,
+        detector: if given {
+            args.detector
+        } else {
+            crate::demo::default_detector()
+        },
+        detector_default: !given,
         ..DemoConfig::default()
     };
     let bar = ui.progress(None, "demo");

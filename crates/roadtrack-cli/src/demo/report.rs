@@ -22,6 +22,10 @@ pub struct Facts {
     pub detector: String,
     /// Whether `--detector` was given (else each method's own background detector).
     pub detector_given: bool,
+    /// The detector's flags, e.g. `--detector cnn --no-flip`.
+    pub detector_flags: String,
+    /// Whether the detector is the demo's default (no `--detector` given).
+    pub detector_default: bool,
     /// Seconds the detector took when it ran once for every method (`--detector cnn`,
     /// `onnx`); `None` when each method ran its own.
     pub detect_seconds: Option<f64>,
@@ -111,13 +115,20 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
             percent(r.movement_error)
         );
     }
+    let default = if facts.detector_default {
+        " (the demo's default: the learned detector without the mirror image, to keep \
+         within a minute; `--detector background` gives each method its own background \
+         detector)"
+    } else {
+        ""
+    };
     let detector = match (facts.detector_given, facts.detect_seconds) {
         (true, Some(t)) => format!(
-            "`--detector {}`, run once for every method ({t:.1} s; the methods' times below \
+            "`{}`{default}, run once for every method ({t:.1} s; the methods' times below \
              leave it out)",
-            facts.detector
+            facts.detector_flags
         ),
-        (true, None) => format!("`--detector {}`", facts.detector),
+        (true, None) => format!("`{}`{default}", facts.detector_flags),
         (false, _) => "each method's own background detector".into(),
     };
     let _ = writeln!(
