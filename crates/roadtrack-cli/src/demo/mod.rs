@@ -407,6 +407,9 @@ fn detect_once(
     let info = source::open(seq, &options)?.info.clone();
     let mut detector = spec.build(seq, &options, &info)?;
     let mut frames = source::open(seq, &options)?;
+    let total = info
+        .selected_frames
+        .map_or(String::new(), |n| format!(" of {n}"));
     let mut batch = Vec::new();
     let mut out = Vec::new();
     while roadtrack::detect::next_batch(&mut frames, detector.batch_len(), &mut batch)? {
@@ -414,6 +417,10 @@ fn detect_once(
             detector.as_mut(),
             &batch,
         )?);
+        step(&format!(
+            "detecting with {name} (once, for every method): {} frames{total}",
+            out.len()
+        ));
     }
     Ok(Some(out))
 }
