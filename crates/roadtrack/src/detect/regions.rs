@@ -697,7 +697,15 @@ mod tests {
         columns: Option<&crate::detect::split::SplitConfig>,
     ) -> Vec<Region> {
         use imageproc::region_labelling::{Connectivity, connected_components};
-        let labels = connected_components(mask, Connectivity::Eight, image::Luma([0u8]));
+        // imageproc 0.27 sizes its union-find w·h and numbers labels from 1: a 1 × 1
+        // foreground mask overflows it (a panic, found by the property test below).
+        let labels = if mask.dimensions() == (1, 1) {
+            image::ImageBuffer::from_fn(1, 1, |x, y| {
+                image::Luma([u32::from(mask.get_pixel(x, y)[0] != 0)])
+            })
+        } else {
+            connected_components(mask, Connectivity::Eight, image::Luma([0u8]))
+        };
         // Labels are assigned in raster order of first appearance, 1..=n: the accumulators grow
         // as labels appear (one pass over the labels, not two).
         let mut acc = vec![Acc::EMPTY];
