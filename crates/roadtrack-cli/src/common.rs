@@ -299,7 +299,8 @@ impl LifecycleArgs {
 /// Which detector finds the objects (`detect`, `track`, `render`, `demo`).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct DetectorArgs {
-    /// Object detector (default: background subtraction).
+    /// Object detector (default: background subtraction; `demo`: the learned detector
+    /// without the mirror image, `cnn --no-flip`).
     #[arg(long, value_enum, value_name = "D")]
     pub detector: Option<DetectorArg>,
     /// Detections file for --detector file: a MOTChallenge det.txt or a detections CSV
