@@ -425,16 +425,15 @@ fn detect_once(
     Ok(Some(out))
 }
 
-/// [`detect_once`]'s detections given back frame by frame, in order.
-struct Replay {
+/// [`detect_once`]'s detections given back frame by frame, in order (a closure is a
+/// [`roadtrack::detect::Detector`]).
+fn replay(
     found: std::sync::Arc<[FrameDetections]>,
-    next: usize,
-}
-
-impl roadtrack::detect::Detector for Replay {
-    fn detect(&mut self, frame: &roadtrack::frame::Frame) -> roadtrack::Result<FrameDetections> {
-        self.next += 1;
-        self.found.get(self.next - 1).cloned().ok_or_else(|| {
+) -> impl FnMut(&roadtrack::frame::Frame) -> roadtrack::Result<FrameDetections> {
+    let mut next = 0;
+    move |frame: &roadtrack::frame::Frame| {
+        next += 1;
+        found.get(next - 1).cloned().ok_or_else(|| {
             roadtrack::Error::Invalid(format!(
                 "internal error: no detections kept for frame {}",
                 frame.index
@@ -502,10 +501,9 @@ fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
     .with_calibration(sh.calibration);
     let own = config.background_detector();
     let detector = match &sh.detections {
-        Some(found) => Some(roadtrack::detect::DetectorSpec::Given(Box::new(Replay {
-            found: std::sync::Arc::clone(found),
-            next: 0,
-        }))),
+        Some(found) => Some(roadtrack::detect::DetectorSpec::Given(Box::new(replay(
+            std::sync::Arc::clone(found),
+        )))),
         None => cfg
             .detector
             .spec(sh.seq, None, || Ok(own))
@@ -680,19 +678,16 @@ mod tests {
         let options = SourceOptions::default();
         let info = source::open(&seq, &options)?.info.clone();
         let mut own = spec.build(&seq, &options, &info)?;
-        let mut replay = Replay {
-            found: found.clone().into(),
-            next: 0,
-        };
+        let mut replayed = replay(found.clone().into());
         let mut last = None;
         for frame in source::open(&seq, &options)? {
             let frame = frame?;
-            assert_eq!(replay.detect(&frame)?, own.detect(&frame)?);
+            assert_eq!(replayed.detect(&frame)?, own.detect(&frame)?);
             last = Some(frame);
         }
         assert_eq!(found.len(), 12);
         assert!(found.iter().any(|f| !f.detections.is_empty()));
-        assert!(replay.detect(&last.context("frames")?).is_err());
+        assert!(replayed.detect(&last.context("frames")?).is_err());
         assert!(detect_once(&DemoConfig::default(), &seq, &mut |_| {})?.is_none());
         Ok(())
     }
