@@ -179,10 +179,12 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
     let _ = writeln!(
         page,
         "\n## Turning movements\n\nComplete trips (first seen in one arm, last seen in \
-         another), all classes; the turning error is Σ |count − truth| over the movements \
+         another; an arm is its road and footways from {} m out, past the crosswalks), all \
+         classes; the turning error is Σ |count − truth| over the movements \
          divided by the truth's trips. Objects first and last seen in one arm (still queued, \
          turned back out of view, or a track broken at the junction) are not turning \
-         movements: they are counted apart, below the line.\n"
+         movements: they are counted apart, below the line.\n",
+        super::ARM_START_M
     );
     header(&mut page, "movement");
     let per_run: Vec<BTreeMap<(String, String), u64>> =
