@@ -328,6 +328,7 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         &["--sim-seed-base", "5000"],
         &["--weights-out", "w.json"],
         &["--clip-to-crop"],
+        &["--clip-to-crop", "--edge-crops", "0.3"],
     ] {
         let o = bin()
             .args(["train", "--sequence", "x"])
@@ -338,9 +339,12 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
     }
     // --init trains, --from-weights converts: not both; simulator seeds 0–3 are the
     // evaluation's.
+    // --edge-crops needs --clip-to-crop and a share in [0, 1].
     for flags in [
-        ["--init", "w.json", "--from-weights", "w.json"],
-        ["--sim-seed-base", "2", "--seed", "1"],
+        &["--init", "w.json", "--from-weights", "w.json"][..],
+        &["--sim-seed-base", "2", "--seed", "1"],
+        &["--edge-crops", "0.3"],
+        &["--clip-to-crop", "--edge-crops", "1.5"],
     ] {
         let o = bin()
             .args(["train", "--detector", "-o", "x.onnx"])
@@ -348,6 +352,9 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
             .output()
             .expect("run");
         assert_eq!(o.status.code(), Some(2), "{flags:?}: {}", stderr(&o));
+        if flags.contains(&"1.5") {
+            assert!(stderr(&o).contains("--edge-crops"), "{}", stderr(&o));
+        }
     }
 }
 

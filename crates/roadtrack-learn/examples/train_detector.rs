@@ -4,7 +4,7 @@
 //!     cargo run --release -p roadtrack-learn --example train_detector -- STEPS SEED OUT.json [LOG.csv]
 //!
 //! Environment: `INIT=W.json` starts from those weights, `SIM_SEED_BASE=N` renders episodes
-//! from simulator seed N (default 1000), `LEARNING_RATE=X` sets the peak rate, `BOX_WEIGHT=X` the box loss's weight, `CLIP_TO_CROP=1` boxes clipped to the crop (a second
+//! from simulator seed N (default 1000), `LEARNING_RATE=X` sets the peak rate, `BOX_WEIGHT=X` the box loss's weight, `CLIP_TO_CROP=1` boxes clipped to the crop, `EDGE_CROP_SHARE=X` that share of crops cutting an object (a second
 //! stage of a recipe; `roadtrack train --detector --init --sim-seed-base --learning-rate`).
 
 use std::io::Write as _;
@@ -33,6 +33,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Ok(v) = std::env::var("CLIP_TO_CROP") {
         cfg.data.clip_to_crop = v == "1";
+    }
+    if let Ok(v) = std::env::var("EDGE_CROP_SHARE") {
+        cfg.data.edge_crop_share = v.parse()?;
     }
     if let Ok(v) = std::env::var("BOX_WEIGHT") {
         cfg.box_weight = v.parse()?;

@@ -235,6 +235,76 @@ fn boxes_are_clipped_to_the_crop_as_the_truth_is_to_the_frame() {
 }
 
 #[test]
+fn edge_crops_cut_an_object_with_the_crop_edge() {
+    use crate::data::{Object, TrainFrame, make_sample};
+    use rand::SeedableRng;
+    use roadtrack::geometry::BBox;
+    // A 60 × 30 px car in the middle of the frame; ordinary scales only.
+    let car = BBox::new(290.0, 220.0, 60.0, 30.0);
+    let frame = |bbox: BBox| TrainFrame {
+        image: image::RgbImage::from_pixel(640, 480, image::Rgb([90, 90, 90])),
+        objects: vec![Object {
+            bbox,
+            channel: 0,
+            visibility: 1.0,
+        }],
+    };
+    let prep = crate::train::training_preprocessing();
+    let data = DataConfig {
+        clip_to_crop: true,
+        zoom_out_share: 0.0,
+        ..DataConfig::default()
+    };
+    // Per sample: the positive's box in crop px, if any.
+    let targets = |f: &TrainFrame, d: &DataConfig| -> Vec<Option<[f64; 4]>> {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let g = d.crop / 4;
+        let plane = g * g;
+        (0..200)
+            .map(|_| {
+                let s = make_sample(f, &mut rng, d, &prep);
+                (0..plane).find(|&i| s.pos[i] > 0.0).map(|i| {
+                    let (ix, iy) = ((i % g) as f64, (i / g) as f64);
+                    let w = 4.0 * f64::from(s.reg[i]).exp();
+                    let h = 4.0 * f64::from(s.reg[plane + i]).exp();
+                    let cx = 4.0 * (ix + f64::from(s.reg[2 * plane + i]));
+                    let cy = 4.0 * (iy + f64::from(s.reg[3 * plane + i]));
+                    [cx - w / 2.0, cy - h / 2.0, cx + w / 2.0, cy + h / 2.0]
+                })
+            })
+            .collect()
+    };
+    let side = data.crop as f64;
+    let at_edge = |b: &[f64; 4]| b[0] < 0.5 || b[1] < 0.5 || b[2] > side - 0.5 || b[3] > side - 0.5;
+    let cut_share = |t: &[Option<[f64; 4]>]| {
+        t.iter().flatten().filter(|b| at_edge(b)).count() as f64 / t.len() as f64
+    };
+    let edge = DataConfig {
+        edge_crop_share: 1.0,
+        ..data
+    };
+    let with = targets(&frame(car), &edge);
+    // Every edge crop holds the car, cut by the crop's edge, 40–90 % of it inside (crop
+    // scale 0.7–1.4 frame px per crop px: 60 px wide is 43–86 crop px, 30 high 21–43).
+    assert!(with.iter().all(Option::is_some), "{with:?}");
+    for b in with.iter().flatten() {
+        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        // The car is 2:1: the uncut side gives the scale, the ratio the cut side's share.
+        assert!(at_edge(b), "not cut: {b:?}");
+        let share = (w / (2.0 * h)).min(2.0 * h / w);
+        assert!((0.39..=0.91).contains(&share), "{share} {b:?}");
+    }
+    let without = targets(&frame(car), &data);
+    assert!(cut_share(&with) > 0.95, "{}", cut_share(&with));
+    assert!(cut_share(&without) < 0.5, "{}", cut_share(&without));
+    // An object too small to cut (4 px) falls back to the ordinary crops, draw for draw
+    // after the edge crop's own draws: the same share of crops holds it.
+    let tiny = BBox::new(318.0, 233.0, 4.0, 4.0);
+    let small_edge = targets(&frame(tiny), &edge);
+    assert!(small_edge.iter().flatten().all(|b| !at_edge(b)));
+}
+
+#[test]
 fn bad_crop_scales_are_refused_by_name() {
     for (data, field) in [
         (
@@ -257,6 +327,20 @@ fn bad_crop_scales_are_refused_by_name() {
                 ..DataConfig::default()
             },
             "min_in_crop",
+        ),
+        (
+            DataConfig {
+                edge_crop_share: -0.1,
+                ..DataConfig::default()
+            },
+            "edge_crop_share",
+        ),
+        (
+            DataConfig {
+                edge_crop_min_px: 0.0,
+                ..DataConfig::default()
+            },
+            "edge_crop_min_px",
         ),
     ] {
         let cfg = TrainConfig {

@@ -128,6 +128,18 @@ impl TrainConfig {
                 format!("must be in [0, 1], got {}", d.min_in_crop),
             );
         }
+        let edge_ok = (0.0..=1.0).contains(&d.edge_crop_share)
+            && d.edge_crop_min_px.is_finite()
+            && d.edge_crop_min_px > 0.0;
+        if !edge_ok {
+            return bad(
+                "edge_crop_share/edge_crop_min_px",
+                format!(
+                    "share must be in [0, 1] and the side > 0 px, got {} and {}",
+                    d.edge_crop_share, d.edge_crop_min_px
+                ),
+            );
+        }
         if let Some(w) = &self.init {
             w.validate()?;
             if w.preprocessing != training_preprocessing() {
