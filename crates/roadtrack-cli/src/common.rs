@@ -234,7 +234,7 @@ pub struct LifecycleArgs {
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
     /// shadow suppression, hold or region splitting).
-    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps"])]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes"])]
     pub as_published: bool,
     /// Offline gap closing: join a track that ends to one that starts up to N frames later
     /// (or up to 4 frames earlier) where its motion leads, under the first one's id, with
@@ -246,6 +246,11 @@ pub struct LifecycleArgs {
     /// pay for the difference. 0 leaves colour out.
     #[arg(long, value_name = "D", default_value_t = 0.0, requires = "link_gaps")]
     pub link_colour: f64,
+    /// Smooth each track's boxes offline: each box becomes a straight-line fit, in time,
+    /// of its track's boxes over the N frames on each side, centre and size (0: off).
+    /// Holds N frames back.
+    #[arg(long, value_name = "N", default_value_t = roadtrack::track::smooth::SmoothConfig::recommended().half_window_frames)]
+    pub smooth_boxes: u32,
 }
 
 impl LifecycleArgs {
@@ -271,6 +276,23 @@ impl LifecycleArgs {
                     true,
                 ),
             ],
+            None,
+        )?;
+        Ok(config)
+    }
+
+    /// The box smoother's configuration (off with `--as-published` or `--smooth-boxes 0`).
+    pub fn smooth(&self) -> Result<roadtrack::track::smooth::SmoothConfig> {
+        let config = roadtrack::track::smooth::SmoothConfig {
+            half_window_frames: if self.as_published {
+                0
+            } else {
+                self.smooth_boxes
+            },
+        };
+        crate::flags::check_overrides(
+            config.validate(),
+            &[("half_window_frames", "--smooth-boxes", true)],
             None,
         )?;
         Ok(config)

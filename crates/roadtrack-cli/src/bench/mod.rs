@@ -200,12 +200,15 @@ pub fn pipeline(seq: &Path, label: &str, seed: u64) -> Result<Vec<StageResult>> 
             let sink: Box<dyn PointSink> = Box::new(MotSink::create(&path)?);
             let start = Instant::now();
             let lifecycle = roadtrack::track::confirm::LifecycleStage::new(Default::default())?;
+            let smooth = roadtrack::track::smooth::SmoothStage::new(
+                roadtrack::track::smooth::SmoothConfig::recommended(),
+            )?;
             let summary = track_source(
                 seq,
                 &SourceOptions::default(),
                 MethodConfig::defaults(method, seed),
                 None,
-                vec![Box::new(lifecycle)],
+                vec![Box::new(lifecycle), Box::new(smooth)],
                 vec![sink],
                 &mut |_, _| {},
             )?;

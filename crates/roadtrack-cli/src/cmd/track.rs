@@ -18,6 +18,7 @@ use roadtrack::track::mrf::{MrfConfig, MrfTracker, MrfVariant};
 use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
 use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
+use roadtrack::track::smooth::SmoothStage;
 use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
@@ -344,6 +345,12 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     }
     if !lifecycle.is_off() {
         stages.push(Box::new(LifecycleStage::new(lifecycle)?));
+    }
+    let smooth = args.lifecycle.smooth()?;
+    if !smooth.is_off() {
+        // After the life cycle: its coasted boxes are smoothed with the others, and the
+        // ground positions and speeds below come from the smoothed boxes.
+        stages.push(Box::new(SmoothStage::new(smooth)?));
     }
     if let Some(cal) = &calibration {
         // Boxes standing above the horizon (far objects, detector noise) cannot be mapped.

@@ -21,6 +21,7 @@ use roadtrack::track::pipeline::{MotSink, TrajectoriesSink};
 use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::replay::ReplayTracker;
+use roadtrack::track::smooth::{SmoothConfig, SmoothStage};
 use roadtrack::track::{Method, MethodConfig, Pipeline, track_source};
 use roadtrack::track_point::TrackPoint;
 use roadtrack_sim::config::IntersectionSignalConfig;
@@ -563,6 +564,7 @@ fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
         detector,
         vec![
             Box::new(LifecycleStage::new(LifecycleConfig::default())?),
+            Box::new(SmoothStage::new(SmoothConfig::recommended())?),
             Box::new(OffGroundFilter::new(sh.calibration, None)),
             Box::new(GroundStage::new(sh.calibration, None, 0.5)?),
         ],

@@ -19,6 +19,7 @@ pub mod mrf;
 pub mod pipeline;
 pub mod relaxation;
 pub mod replay;
+pub mod smooth;
 
 pub use method::{Method, MethodConfig, track_source};
 pub use pipeline::{Pipeline, PointSink, PointStage, RunSummary};
