@@ -544,3 +544,63 @@ fn link_gaps_joins_broken_tracks_deterministically() {
         .expect("run");
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+/// Box smoothing (`--smooth-boxes`, on by default): on the aerial road's public
+/// detections relaxation's boxes fit the truth better (HOTA up), `--smooth-boxes 0` is the
+/// stage off, the output is the same at one and two threads, and bad values are usage
+/// errors naming the flag.
+#[test]
+fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Road, ViewKind::Aerial, 100);
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/relaxation-video.toml");
+    let run = |extra: &[&str], threads: &str, name: &str| {
+        let out = dir.path().join(name);
+        let o = bin()
+            .env("RAYON_NUM_THREADS", threads)
+            .arg("track")
+            .arg(&seq)
+            .args([
+                "--method",
+                "relaxation",
+                "--detector",
+                "file",
+                "-q",
+                "--config",
+            ])
+            .arg(&config)
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        out
+    };
+    let off = run(&["--smooth-boxes", "0"], "2", "off.txt");
+    let on = run(&[], "2", "on.txt");
+    let ((h0, _), (h1, _)) = (hota_idf1(&seq, &off), hota_idf1(&seq, &on));
+    assert!(h1 > h0 + 0.01, "HOTA {h0} → {h1}");
+    assert_eq!(
+        std::fs::read(&on).expect("read"),
+        std::fs::read(run(&[], "1", "on1.txt")).expect("read"),
+        "1 and 2 threads differ"
+    );
+    for flags in [
+        &["--smooth-boxes", "5000"][..],
+        &["--smooth-boxes", "-1"],
+        &["--as-published", "--smooth-boxes", "3"],
+    ] {
+        let o = bin()
+            .arg("track")
+            .arg(&seq)
+            .args(["--method", "relaxation", "--detector", "file", "-o"])
+            .arg(dir.path().join("bad.txt"))
+            .args(flags)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--smooth-boxes"), "{}", stderr(&o));
+    }
+}
