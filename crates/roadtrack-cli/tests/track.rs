@@ -103,9 +103,9 @@ fn mot_boxes(path: &Path) -> Vec<(u32, [f64; 4])> {
 }
 
 /// `track --method mrf --detector file` starts its objects from the public detections and
-/// reports them at the detections' boxes (without the smoothing of small boxes; the life
-/// cycle keeps their centres); with `--as-published` it tracks from pixels alone (boxes on
-/// the 8-px block grid).
+/// reports them at the detections' boxes (without the MRF's smoothing of small boxes and
+/// the boxes' smoothing in time, `--smooth-boxes 0`; the life cycle keeps their centres);
+/// with `--as-published` it tracks from pixels alone (boxes on the 8-px block grid).
 #[test]
 fn mrf_reports_objects_at_the_detectors_boxes_unless_as_published() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -135,7 +135,15 @@ fn mrf_reports_objects_at_the_detectors_boxes_unless_as_published() {
     );
     let raw = dir.path().join("raw.toml");
     std::fs::write(&raw, "box_smoothing_px = 0\n").expect("write");
-    let default = run("default.txt", &["--config", raw.to_str().expect("utf-8")]);
+    let default = run(
+        "default.txt",
+        &[
+            "--config",
+            raw.to_str().expect("utf-8"),
+            "--smooth-boxes",
+            "0",
+        ],
+    );
     let at_a_detection = default
         .iter()
         .filter(|(f, b)| {
