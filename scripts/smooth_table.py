@@ -18,20 +18,14 @@ import sys
 from collections import defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from video_tracking_table import KEYS, METHODS, evaluate, run  # noqa: E402
+from video_tracking_table import KEYS, METHODS, add_common_arguments, evaluate, run  # noqa: E402
 
 VARIANTS = [("off (--smooth-boxes 0)", ["--smooth-boxes", "0"]), ("default", [])]
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--roadtrack", default="roadtrack")
-    ap.add_argument("--frames", type=int, default=300)
-    ap.add_argument("--seeds", default="1,2,3")
-    ap.add_argument("--scenes", default="road,intersection,crossing")
-    ap.add_argument("--views", default="aerial,oblique")
-    ap.add_argument("--methods", default=",".join(m for m, _ in METHODS))
-    ap.add_argument("--work", default="/tmp/vidtrack")
+    add_common_arguments(ap)
     a = ap.parse_args()
     rt = a.roadtrack
     methods = [(m, e) for m, e in METHODS if m in a.methods.split(",")]

@@ -49,20 +49,25 @@ def evaluate(rt, seq, tracks):
     return {k: float(m[k]) for k in KEYS}
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def add_common_arguments(ap):
+    """The binary, the sequences and the methods: what scripts/smooth_table.py takes too."""
     ap.add_argument("--roadtrack", default="roadtrack")
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--scenes", default="road,intersection,crossing")
     ap.add_argument("--views", default="aerial,oblique")
-    ap.add_argument("--detectors", default="background,cnn")
     ap.add_argument("--methods", default=",".join(m for m, _ in METHODS))
+    ap.add_argument("--work", default="/tmp/vidtrack")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    add_common_arguments(ap)
+    ap.add_argument("--detectors", default="background,cnn")
     ap.add_argument("--cnn-args", action="append",
                     help="extra flags for --detector cnn, e.g. '--model F.onnx --pyramid 1' "
                          "(`--cnn-args=--keep-nested` for one flag); given more than once, "
                          "each is a row of its own on the same frames")
-    ap.add_argument("--work", default="/tmp/vidtrack")
     a = ap.parse_args()
     methods = [(m, e) for m, e in METHODS if m in a.methods.split(",")]
     variants = a.cnn_args or [""]

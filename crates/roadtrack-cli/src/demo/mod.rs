@@ -122,15 +122,22 @@ const FILTERS_VIDEO: &str = include_str!("../../../../configs/filters-pedestrian
 /// as measurements, the paper's speed-proportional motion, survival 0.99 at 10 frames/s).
 // Choice: that file, not the filters' defaults, as relaxation runs with its video settings.
 // On the demo's whole cycle with the learned detector (seeds 0-2) it lifts the PF's HOTA by
-// 0.15-0.18 and the PHD's by 0.02-0.05, and the PF stops inventing trips (its tracks wander
+// 0.15-0.17 and the PHD's by 0.02-0.03, and the PF stops inventing trips (its tracks wander
 // between objects with the defaults: 44-79 trips where the truth has 14-30);
 // docs/EXPERIMENTS.md "Demo".
 pub fn demo_filters() -> Result<FilterTrackConfig> {
-    use roadtrack::config::Validate;
-    let name = "configs/filters-pedestrians.toml";
-    let config: FilterTrackConfig =
-        toml::from_str(FILTERS_VIDEO).with_context(|| format!("reading the built-in {name}"))?;
-    Validate::validate(&config).with_context(|| format!("the built-in {name}"))?;
+    built_in(FILTERS_VIDEO, "configs/filters-pedestrians.toml")
+}
+
+/// A configuration file built into the binary (`text`, from `name`), read and checked.
+fn built_in<T>(text: &str, name: &str) -> Result<T>
+where
+    T: serde::de::DeserializeOwned + roadtrack::config::Validate,
+{
+    let config: T = toml::from_str(text).with_context(|| format!("reading the built-in {name}"))?;
+    config
+        .validate()
+        .with_context(|| format!("the built-in {name}"))?;
     Ok(config)
 }
 

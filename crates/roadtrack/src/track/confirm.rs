@@ -259,15 +259,8 @@ mod tests {
     use super::*;
 
     fn point(frame: u32, id: u64, x: f64, w: f64, class: ObjectClass) -> TrackPoint {
-        TrackPoint {
-            frame,
-            time_s: f64::from(frame - 1) / 10.0,
-            id,
-            class,
-            bbox: BBox::from_centre(crate::geometry::Point::new(x, 50.0), w, 10.0),
-            score: 1.0,
-            ground: None,
-        }
+        let bbox = BBox::from_centre(crate::geometry::Point::new(x, 50.0), w, 10.0);
+        crate::track::point_at(frame, id, class, bbox)
     }
 
     use crate::track::frames_of as frames;

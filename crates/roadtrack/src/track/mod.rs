@@ -81,6 +81,25 @@ pub(crate) fn interpolated_point(
     }
 }
 
+/// Test input: a point of track `id` in `frame` (10 frames/s), score 1, not on the ground.
+#[cfg(test)]
+pub(crate) fn point_at(
+    frame: u32,
+    id: u64,
+    class: crate::class::ObjectClass,
+    bbox: crate::geometry::BBox,
+) -> TrackPoint {
+    TrackPoint {
+        frame,
+        time_s: f64::from(frame - 1) / 10.0,
+        id,
+        class,
+        bbox,
+        score: 1.0,
+        ground: None,
+    }
+}
+
 /// Test input: frames `1..=n` at 10 frames/s holding `points` by frame, sorted by id.
 #[cfg(test)]
 pub(crate) fn frames_of(points: &[TrackPoint], n: u32) -> Vec<FramePoints> {

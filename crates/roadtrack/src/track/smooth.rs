@@ -197,15 +197,8 @@ mod tests {
     use crate::track_point::TrackPoint;
 
     fn point(frame: u32, id: u64, x: f64, y: f64, w: f64) -> TrackPoint {
-        TrackPoint {
-            frame,
-            time_s: f64::from(frame - 1) / 10.0,
-            id,
-            class: ObjectClass::Car,
-            bbox: BBox::from_centre(Point::new(x, y), w, w / 2.0),
-            score: 1.0,
-            ground: None,
-        }
+        let bbox = BBox::from_centre(Point::new(x, y), w, w / 2.0);
+        crate::track::point_at(frame, id, ObjectClass::Car, bbox)
     }
 
     fn run(k: u32, input: Vec<FramePoints>) -> Result<Vec<FramePoints>> {
