@@ -327,6 +327,7 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         &["--init", "w.json"],
         &["--sim-seed-base", "5000"],
         &["--weights-out", "w.json"],
+        &["--average", "a.onnx", "b.onnx"],
         &["--clip-to-crop"],
         &["--clip-to-crop", "--edge-crops", "0.3"],
     ] {
@@ -342,6 +343,8 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
     // --edge-crops needs --clip-to-crop and a share in [0, 1].
     for flags in [
         &["--init", "w.json", "--from-weights", "w.json"][..],
+        &["--average", "a.onnx"],
+        &["--average", "a.onnx", "b.onnx", "--init", "w.json"],
         &["--sim-seed-base", "2", "--seed", "1"],
         &["--edge-crops", "0.3"],
         &["--clip-to-crop", "--edge-crops", "1.5"],
@@ -397,4 +400,61 @@ fn from_weights_writes_a_model_the_detector_runs_and_bad_weights_exit_1() {
         .expect("run");
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+}
+
+#[test]
+fn average_of_the_shipped_model_with_itself_is_the_shipped_model_and_bad_inputs_exit_1() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // Read from ONNX and from the JSON --weights-out writes, the mean of one network
+    // taken twice is that network, byte for byte.
+    let model = dir.path().join("m.onnx");
+    let json = dir.path().join("m.json");
+    let o = bin()
+        .args(["-q", "train", "--detector", "--average"])
+        .arg(shipped_model())
+        .arg(shipped_model())
+        .arg("-o")
+        .arg(&model)
+        .arg("--weights-out")
+        .arg(&json)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shipped = std::fs::read(shipped_model()).expect("shipped");
+    assert_eq!(std::fs::read(&model).expect("model"), shipped);
+    let again = dir.path().join("again.onnx");
+    let o = bin()
+        .args(["-q", "train", "--detector", "--average"])
+        .arg(&json)
+        .arg(&model)
+        .arg("-o")
+        .arg(&again)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&again).expect("again"), shipped);
+    // Another kind of model, or networks of two shapes: exit 1 naming what is wrong.
+    let text = std::fs::read_to_string(cnn_fixture("centernet_parity.json")).expect("fixture");
+    let parity: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let small = dir.path().join("small.json");
+    std::fs::write(&small, parity["weights"].to_string()).expect("write");
+    for (inputs, needle) in [
+        (
+            [cnn_fixture("tiny_yolo.onnx"), shipped_model()],
+            "tiny_yolo.onnx",
+        ),
+        ([shipped_model(), small.clone()], "network 2"),
+    ] {
+        let out = dir.path().join("x.onnx");
+        let o = bin()
+            .args(["-q", "train", "--detector", "--average"])
+            .args(&inputs)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{needle}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
 }

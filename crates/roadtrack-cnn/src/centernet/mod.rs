@@ -155,6 +155,99 @@ pub fn onnx_bytes(net: &CenterNetWeights) -> Result<Vec<u8>> {
     Ok(onnx_model(net)?.encode_to_vec())
 }
 
+/// The weights of a learned detector's ONNX file (what [`onnx_model`] wrote): the shape
+/// from the initialisers' dims, each layer's `NAME.w` / `NAME.b`, the preprocessing from
+/// the metadata. Lets a training stage start from a shipped model (`train --detector
+/// --init models/detector.onnx`) and models be averaged (`--average`).
+///
+/// # Errors
+/// The file cannot be read or decoded, is not a learned detector (`roadtrack.kind`), or
+/// lacks a layer's weights or has them in the wrong size.
+pub fn read_weights(path: &Path) -> Result<CenterNetWeights> {
+    use super::onnx::model_error;
+    let bytes = std::fs::read(path).map_err(|e| roadtrack::Error::io(path, e))?;
+    let proto = pb::ModelProto::decode(bytes.as_slice())
+        .map_err(|e| model_error(path, format!("not an ONNX file ({e})")))?;
+    if super::onnx::metadata(&proto, "roadtrack.kind") != Some(KIND) {
+        return Err(model_error(
+            path,
+            format!("not a learned detector (metadata roadtrack.kind is not {KIND:?})"),
+        ));
+    }
+    let graph = proto
+        .graph
+        .as_ref()
+        .ok_or_else(|| model_error(path, "no graph"))?;
+    let tensor = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
+        let t = graph
+            .initializer
+            .iter()
+            .find(|t| t.name == name)
+            .ok_or_else(|| model_error(path, format!("no initialiser {name}")))?;
+        let values = super::onnx::float_values(t)
+            .ok_or_else(|| model_error(path, format!("initialiser {name} is not float data")))?;
+        let dims = t
+            .dims
+            .iter()
+            .map(|&d| usize::try_from(d).unwrap_or(0))
+            .collect();
+        Ok((dims, values))
+    };
+    // The widths are the output channels of the layers that set them.
+    let cout = |name: &str| -> Result<usize> { Ok(tensor(&format!("{name}.b"))?.1.len()) };
+    let shape = CenterNetShape {
+        c1: cout("conv1")?,
+        c2: cout("conv2")?,
+        c3: cout("conv4")?,
+        c4: cout("conv6")?,
+        head: cout("head")?,
+    };
+    let mut layers = Vec::new();
+    for s in shape.layers() {
+        let (dims, weight) = tensor(&format!("{}.w", s.name))?;
+        if dims != s.weight_dims() {
+            return Err(model_error(
+                path,
+                format!(
+                    "layer {} has weight dims {dims:?}, expected {:?}",
+                    s.name,
+                    s.weight_dims()
+                ),
+            ));
+        }
+        let (_, bias) = tensor(&format!("{}.b", s.name))?;
+        layers.push(LayerWeights { weight, bias });
+    }
+    let p = super::onnx::preprocessing_from_metadata(&proto);
+    let net = CenterNetWeights {
+        shape,
+        layers,
+        preprocessing: roadtrack::detect::centernet::Preprocessing {
+            input_scale: p.input_scale,
+            mean: p.mean,
+            std: p.std,
+        },
+    };
+    net.validate().map_err(|e| model_error(path, e))?;
+    Ok(net)
+}
+
+/// Weights from a file: the trainer's JSON, or a learned detector's ONNX when the name
+/// ends in `.onnx`.
+///
+/// # Errors
+/// As [`read_weights`] or [`CenterNetWeights::from_json`], the file named.
+pub fn read_weights_any(path: &Path) -> Result<CenterNetWeights> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("onnx"))
+    {
+        return read_weights(path);
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
+    CenterNetWeights::from_json(&text).map_err(|e| roadtrack::Error::format(path, e.to_string()))
+}
+
 /// Writes `net` as ONNX to `path` (atomically).
 ///
 /// # Errors

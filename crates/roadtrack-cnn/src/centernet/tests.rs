@@ -750,3 +750,97 @@ fn batch_equals_one_by_one(
     }
     Ok(())
 }
+
+/// The weights of the parity fixture (a non-default shape, random values).
+fn parity_weights() -> Result<CenterNetWeights> {
+    #[derive(serde::Deserialize)]
+    struct Fixture {
+        weights: CenterNetWeights,
+    }
+    let path = fixture("centernet_parity.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let f: Fixture = serde_json::from_str(&text)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+    Ok(f.weights)
+}
+
+#[test]
+fn weights_read_back_from_onnx_are_the_weights_written() -> Result<()> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let w = parity_weights()?;
+    assert_ne!(w.shape, CenterNetShape::default());
+    let onnx = dir.path().join("det.onnx");
+    write_onnx(&onnx, &w)?;
+    assert_eq!(read_weights(&onnx)?, w);
+    assert_eq!(read_weights_any(&onnx)?, w);
+    let json = dir.path().join("det.json");
+    std::fs::write(&json, w.to_json()?).map_err(|e| Error::io(&json, e))?;
+    assert_eq!(read_weights_any(&json)?, w);
+    // The shipped model: written back, the same bytes.
+    let shipped_bytes = std::fs::read(shipped()).map_err(|e| Error::io(shipped(), e))?;
+    let read = read_weights(&shipped())?;
+    assert_eq!(read.shape, CenterNetShape::default());
+    assert_eq!(onnx_bytes(&read)?, shipped_bytes);
+    Ok(())
+}
+
+#[test]
+fn other_models_and_broken_weights_are_refused_naming_the_file() -> Result<()> {
+    for name in ["tiny_classifier.onnx", "tiny_yolo.onnx"] {
+        let path = fixture(name);
+        let msg = read_weights(&path).expect_err(name).to_string();
+        assert!(msg.contains(&*path.to_string_lossy()), "{msg}");
+        assert!(msg.contains("not a learned detector"), "{msg}");
+    }
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, "{\"shape\": 1}").map_err(|e| Error::io(&bad, e))?;
+    let msg = read_weights_any(&bad).expect_err("bad JSON").to_string();
+    assert!(msg.contains("bad.json"), "{msg}");
+    // A model whose layer lost its weights.
+    let mut proto = onnx_model(&parity_weights()?)?;
+    if let Some(g) = proto.graph.as_mut() {
+        g.initializer.retain(|t| t.name != "conv3.w");
+    }
+    let cut = dir.path().join("cut.onnx");
+    std::fs::write(&cut, proto.encode_to_vec()).map_err(|e| Error::io(&cut, e))?;
+    let msg = read_weights(&cut).expect_err("no conv3.w").to_string();
+    assert!(msg.contains("cut.onnx") && msg.contains("conv3.w"), "{msg}");
+    Ok(())
+}
+
+#[test]
+fn the_average_of_networks_is_their_element_wise_mean() -> Result<()> {
+    let a = parity_weights()?;
+    let mut b = a.clone();
+    for l in &mut b.layers {
+        for (i, v) in l.weight.iter_mut().enumerate() {
+            *v = i as f32 * 0.01 - 0.3;
+        }
+        l.bias.iter_mut().for_each(|v| *v = 1.0);
+    }
+    // One network, or three copies of one, is itself.
+    assert_eq!(CenterNetWeights::average(std::slice::from_ref(&a))?, a);
+    assert_eq!(
+        CenterNetWeights::average(&[a.clone(), a.clone(), a.clone()])?,
+        a
+    );
+    let m = CenterNetWeights::average(&[a.clone(), b.clone()])?;
+    assert_eq!((m.shape, m.preprocessing), (a.shape, a.preprocessing));
+    for ((lm, la), lb) in m.layers.iter().zip(&a.layers).zip(&b.layers) {
+        for ((x, y), z) in lm.weight.iter().zip(&la.weight).zip(&lb.weight) {
+            assert!((x - (y + z) / 2.0).abs() <= 1e-6, "{x} vs {y}, {z}");
+        }
+        for ((x, y), z) in lm.bias.iter().zip(&la.bias).zip(&lb.bias) {
+            assert!((x - (y + z) / 2.0).abs() <= 1e-6, "{x} vs {y}, {z}");
+        }
+    }
+    // Different shapes, or none, are refused.
+    let other = read_weights(&shipped())?;
+    let msg = CenterNetWeights::average(&[a.clone(), other])
+        .expect_err("two shapes")
+        .to_string();
+    assert!(msg.contains("network 2"), "{msg}");
+    assert!(CenterNetWeights::average(&[]).is_err());
+    Ok(())
+}

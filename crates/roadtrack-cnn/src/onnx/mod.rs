@@ -161,7 +161,7 @@ fn value_dims(v: &pb::ValueInfoProto) -> Option<Vec<Option<i64>>> {
 }
 
 /// The values of a float initializer.
-fn float_values(t: &pb::TensorProto) -> Option<Vec<f32>> {
+pub(crate) fn float_values(t: &pb::TensorProto) -> Option<Vec<f32>> {
     if t.data_type != pb::tensor_proto::DataType::Float as i32 {
         return None;
     }

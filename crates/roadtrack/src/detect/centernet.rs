@@ -227,6 +227,49 @@ impl CenterNetWeights {
         Ok(w)
     }
 
+    /// The element-wise mean of networks of one shape and preprocessing: a "model soup"
+    /// (Wortsman et al. 2022, uniform soup) of fine-tunes started from the same weights.
+    /// Summed in f64, in the order given.
+    ///
+    /// # Errors
+    /// No networks, or networks whose shapes or preprocessing differ.
+    pub fn average(nets: &[Self]) -> Result<Self> {
+        let first = nets
+            .first()
+            .ok_or_else(|| Error::Invalid("averaging weights: no networks given".into()))?;
+        for (i, n) in nets.iter().enumerate() {
+            n.validate()?;
+            if n.shape != first.shape || n.preprocessing != first.preprocessing {
+                return Err(Error::Invalid(format!(
+                    "averaging weights: network {} has shape {:?} and preprocessing {:?}, \
+                     the first {:?} and {:?}",
+                    i + 1,
+                    n.shape,
+                    n.preprocessing,
+                    first.shape,
+                    first.preprocessing
+                )));
+            }
+        }
+        let k = nets.len() as f64;
+        let mean = |get: &dyn Fn(&Self) -> &[f32], len: usize| -> Vec<f32> {
+            (0..len)
+                .map(|j| (nets.iter().map(|n| f64::from(get(n)[j])).sum::<f64>() / k) as f32)
+                .collect()
+        };
+        let layers = (0..first.layers.len())
+            .map(|l| LayerWeights {
+                weight: mean(&|n| &n.layers[l].weight, first.layers[l].weight.len()),
+                bias: mean(&|n| &n.layers[l].bias, first.layers[l].bias.len()),
+            })
+            .collect();
+        Ok(Self {
+            shape: first.shape,
+            layers,
+            preprocessing: first.preprocessing,
+        })
+    }
+
     /// Checks the weight counts against the shape.
     ///
     /// # Errors

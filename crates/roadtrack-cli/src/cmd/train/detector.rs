@@ -26,10 +26,16 @@ pub struct DetectorTrainArgs {
     /// `train_detector` example as ONNX (-o).
     #[arg(long, value_name = "W.json")]
     pub from_weights: Option<PathBuf>,
-    /// --detector: start from these weights (JSON, as `train_detector` writes, or the
-    /// checkpoint of an earlier run) instead of random ones; the optimiser and the
-    /// schedule of --steps start fresh (a second stage of a recipe).
-    #[arg(long, value_name = "W.json", conflicts_with = "from_weights")]
+    /// --detector: no training; write the element-wise mean of these networks (JSON or a
+    /// learned detector's .onnx, all of one shape) as ONNX (-o), and as JSON with
+    /// --weights-out: a soup of fine-tunes started from the same weights.
+    #[arg(long, value_name = "W", num_args = 2.., conflicts_with_all = ["from_weights", "init"])]
+    pub average: Vec<PathBuf>,
+    /// --detector: start from these weights (JSON, as `train_detector` writes, the
+    /// checkpoint of an earlier run, or a learned detector's .onnx such as the shipped
+    /// models/detector.onnx) instead of random ones; the optimiser and the schedule of
+    /// --steps start fresh (a second stage of a recipe).
+    #[arg(long, value_name = "W.json|W.onnx", conflicts_with = "from_weights")]
     pub init: Option<PathBuf>,
     /// --detector: also write the weights as JSON here, at every checkpoint and at the
     /// end (what --init of a next stage reads).
@@ -67,6 +73,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--loss-log", a.loss_log.is_some()),
             ("--from-weights", a.from_weights.is_some()),
             ("--init", a.init.is_some()),
+            ("--average", !a.average.is_empty()),
             ("--weights-out", a.weights_out.is_some()),
             ("--sim-seed-base", a.sim_seed_base.is_some()),
             ("--clip-to-crop", a.clip_to_crop),
@@ -89,6 +96,34 @@ fn convert_weights(weights: &std::path::Path, output: &std::path::Path, ui: &Ui)
     Ok(())
 }
 
+/// `--average W...`: the mean of the networks, written as ONNX (and as JSON with
+/// `--weights-out`).
+#[cfg(feature = "cnn")]
+fn average_weights(
+    inputs: &[PathBuf],
+    output: &std::path::Path,
+    weights_out: Option<&std::path::Path>,
+    ui: &Ui,
+) -> Result<()> {
+    use anyhow::Context as _;
+    use roadtrack_cnn::centernet::{CenterNetWeights, read_weights_any, write_onnx};
+    let nets = inputs
+        .iter()
+        .map(|p| read_weights_any(p))
+        .collect::<roadtrack::Result<Vec<_>>>()?;
+    let mean = CenterNetWeights::average(&nets).context("averaging the networks")?;
+    write_onnx(output, &mean).with_context(|| format!("writing {}", output.display()))?;
+    if let Some(p) = weights_out {
+        roadtrack::io::atomic::write_bytes_atomic(p, mean.to_json()?.as_bytes())?;
+    }
+    ui.info(format!(
+        "wrote {}: the mean of {} networks",
+        output.display(),
+        nets.len()
+    ));
+    Ok(())
+}
+
 /// Without the `learn` feature there is no trainer (`--from-weights` still converts when
 /// the `cnn` feature is on).
 #[cfg(not(feature = "learn"))]
@@ -96,6 +131,11 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     #[cfg(feature = "cnn")]
     if let Some(path) = &args.detector_args.from_weights {
         return convert_weights(path, &args.output, ui);
+    }
+    #[cfg(feature = "cnn")]
+    if !args.detector_args.average.is_empty() {
+        let d = &args.detector_args;
+        return average_weights(&d.average, &args.output, d.weights_out.as_deref(), ui);
     }
     let _ = (args, ui);
     anyhow::bail!(
@@ -115,6 +155,9 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     if let Some(path) = &d.from_weights {
         return convert_weights(path, &args.output, ui);
     }
+    if !d.average.is_empty() {
+        return average_weights(&d.average, &args.output, d.weights_out.as_deref(), ui);
+    }
     let mut config = TrainConfig {
         seed: args.seed,
         ..TrainConfig::default()
@@ -124,8 +167,8 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     }
     config.stop_after = d.stop_after;
     if let Some(p) = &d.init {
-        let text = std::fs::read_to_string(p).map_err(|e| roadtrack::Error::io(p, e))?;
-        let w = roadtrack_learn::arch::CenterNetWeights::from_json(&text)
+        // roadtrack_learn::arch is roadtrack's own centernet module: the same type.
+        let w = roadtrack_cnn::centernet::read_weights_any(p)
             .with_context(|| format!("reading the starting weights {}", p.display()))?;
         config.init = Some(std::sync::Arc::new(w));
     }
