@@ -24,6 +24,7 @@ occluded objects cannot be found by any region detector); precision over all det
 """
 import argparse
 import csv
+import math
 import os
 import subprocess
 from collections import defaultdict
@@ -102,8 +103,11 @@ def score_groups(gt, dets, n_frames, size):
     """Recall (visibility ≥ 0.5) and precision for vehicles and pedestrians: greedy
     class-agnostic matching at IoU 0.5; a detection counts for the group of its class.
     "cut": vehicles whose box (clipped to the frame by the simulator) reaches within 1 px
-    of the frame's edge."""
+    of the frame's edge. Also the mean IoU of the found vehicles' boxes ("loc") and the
+    mean |ln(w_det / w_true)| + |ln(h_det / h_true)| / 2 over them ("size"): how tight the
+    boxes HOTA's localisation scores are."""
     hit, tot, det_n, det_ok = (defaultdict(int) for _ in range(4))
+    ious, size_err = [], []
     for frame in range(1, n_frames + 1):
         g = gt.get(frame, [])
         d = dets.get(frame, [])
@@ -120,6 +124,10 @@ def score_groups(gt, dets, n_frames, size):
                 continue
             used_g.add(i)
             used_d.add(j)
+            if g[i][3] >= 0.5 and g[i][2] != 1:
+                (gx, gy, gw, gh), (dx, dy, dw, dh) = g[i][1], d[j][0]
+                ious.append(v)
+                size_err.append((abs(math.log(dw / gw)) + abs(math.log(dh / gh))) / 2)
         for i, (_, gb, cls, vis) in enumerate(g):
             if vis < 0.5:
                 continue
@@ -136,6 +144,9 @@ def score_groups(gt, dets, n_frames, size):
             det_ok[k] += j in used_d
     rec = {k: hit[k] / tot[k] for k in tot if tot[k]}
     prec = {k: det_ok[k] / det_n[k] for k in det_n if det_n[k]}
+    if ious:
+        rec["loc"] = sum(ious) / len(ious)
+        rec["size"] = sum(size_err) / len(size_err)
     return rec, prec, tot
 
 
@@ -274,13 +285,14 @@ def main():
     if groups:
         print()
         print("| scene | view | R vehicles | P vehicles | R pedestrians | P pedestrians "
-              "| R vehicles cut by the edge (share) |")
-        print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
+              "| R vehicles cut by the edge (share) | IoU of found vehicles | size error |")
+        print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
         f = lambda d, k: f"{d[k]:.2f}" if k in d else "–"
         for scene, view, (rec, prec, tot) in groups:
             share = f" ({tot['cut'] / tot['veh']:.2f})" if tot.get("veh") else ""
             print(f"| {scene} | {view} | {f(rec, 'veh')} | {f(prec, 'veh')} | "
-                  f"{f(rec, 'ped')} | {f(prec, 'ped')} | {f(rec, 'cut')}{share} |")
+                  f"{f(rec, 'ped')} | {f(prec, 'ped')} | {f(rec, 'cut')}{share} | "
+                  f"{f(rec, 'loc')} | {f(rec, 'size')} |")
 
 
 if __name__ == "__main__":
