@@ -234,7 +234,7 @@ pub struct LifecycleArgs {
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
     /// shadow suppression, hold or region splitting).
-    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes"])]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes", "smooth_vehicle_boxes"])]
     pub as_published: bool,
     /// Offline gap closing: join a track that ends to one that starts up to N frames later
     /// (or up to 4 frames earlier) where its motion leads, under the first one's id, with
@@ -248,9 +248,14 @@ pub struct LifecycleArgs {
     pub link_colour: f64,
     /// Smooth each track's boxes offline: each box becomes a straight-line fit, in time,
     /// of its track's boxes over the N frames on each side, centre and size (0: off).
-    /// Holds N frames back.
-    #[arg(long, value_name = "N", default_value_t = roadtrack::track::smooth::SmoothConfig::recommended().half_window_frames)]
-    pub smooth_boxes: u32,
+    /// Holds the longest window back [default: 5].
+    #[arg(long, value_name = "N")]
+    pub smooth_boxes: Option<u32>,
+    /// The smoothing window of vehicles' boxes (car, truck, bus, motorcycle; 0: none);
+    /// 9 suits top-down views, where a car's image path is straight [default:
+    /// --smooth-boxes].
+    #[arg(long, value_name = "N")]
+    pub smooth_vehicle_boxes: Option<u32>,
 }
 
 impl LifecycleArgs {
@@ -281,18 +286,26 @@ impl LifecycleArgs {
         Ok(config)
     }
 
-    /// The box smoother's configuration (off with `--as-published` or `--smooth-boxes 0`).
+    /// The box smoother's configuration: [`SmoothConfig::recommended`] unless told
+    /// otherwise; off with `--as-published` or `--smooth-boxes 0`.
+    ///
+    /// [`SmoothConfig::recommended`]: roadtrack::track::smooth::SmoothConfig::recommended
     pub fn smooth(&self) -> Result<roadtrack::track::smooth::SmoothConfig> {
-        let config = roadtrack::track::smooth::SmoothConfig {
-            half_window_frames: if self.as_published {
-                0
-            } else {
-                self.smooth_boxes
-            },
+        use roadtrack::track::smooth::SmoothConfig;
+        let mut config = match self.smooth_boxes {
+            _ if self.as_published => SmoothConfig::uniform(0),
+            Some(k) => SmoothConfig::uniform(k),
+            None => SmoothConfig::recommended(),
         };
+        if let Some(k) = self.smooth_vehicle_boxes {
+            config.vehicle_half_window_frames = Some(k);
+        }
         crate::flags::check_overrides(
             config.validate(),
-            &[("half_window_frames", "--smooth-boxes", true)],
+            &[
+                ("vehicle_half_window_frames", "--smooth-vehicle-boxes", true),
+                ("half_window_frames", "--smooth-boxes", true),
+            ],
             None,
         )?;
         Ok(config)
