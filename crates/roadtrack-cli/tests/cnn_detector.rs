@@ -443,7 +443,10 @@ fn average_of_the_shipped_model_with_itself_is_the_shipped_model_and_bad_inputs_
             [cnn_fixture("tiny_yolo.onnx"), shipped_model()],
             "tiny_yolo.onnx",
         ),
-        ([shipped_model(), small.clone()], "network 2"),
+        (
+            [shipped_model(), small.clone()],
+            "small.json (in this order)",
+        ),
     ] {
         let out = dir.path().join("x.onnx");
         let o = bin()
@@ -455,6 +458,9 @@ fn average_of_the_shipped_model_with_itself_is_the_shipped_model_and_bad_inputs_
             .expect("run");
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         assert!(stderr(&o).contains(needle), "{needle}: {}", stderr(&o));
+        if needle.contains("order") {
+            assert!(stderr(&o).contains("network 2"), "{}", stderr(&o));
+        }
         assert!(!out.exists());
     }
 }

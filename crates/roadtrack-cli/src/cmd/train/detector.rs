@@ -111,7 +111,10 @@ fn average_weights(
         .iter()
         .map(|p| read_weights_any(p))
         .collect::<roadtrack::Result<Vec<_>>>()?;
-    let mean = CenterNetWeights::average(&nets).context("averaging the networks")?;
+    let mean = CenterNetWeights::average(&nets).with_context(|| {
+        let names: Vec<String> = inputs.iter().map(|p| p.display().to_string()).collect();
+        format!("averaging {} (in this order)", names.join(", "))
+    })?;
     write_onnx(output, &mean).with_context(|| format!("writing {}", output.display()))?;
     if let Some(p) = weights_out {
         roadtrack::io::atomic::write_bytes_atomic(p, mean.to_json()?.as_bytes())?;
