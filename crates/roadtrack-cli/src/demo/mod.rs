@@ -488,7 +488,7 @@ fn replay(
 /// papers' order whatever order they finish in.
 // Choice: the methods are independent, each with its own seed and its own pass over the
 // frames, so running them side by side changes no output; it is what keeps the whole-cycle
-// demo within a minute on two cores.
+// demo near a minute on two cores (docs/PERFORMANCE.md "Demo").
 fn run_methods(sh: &Shared<'_>, step: &mut dyn FnMut(&str)) -> Result<Vec<Ran>> {
     let all = methods();
     let workers = std::thread::available_parallelism()

@@ -117,7 +117,7 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
     }
     let default = if facts.detector_default {
         " (the demo's default: the learned detector without the mirror image, to keep \
-         within a minute; `--detector background` gives each method its own background \
+         the run short; `--detector background` gives each method its own background \
          detector)"
     } else {
         ""
