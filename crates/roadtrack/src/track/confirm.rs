@@ -246,11 +246,8 @@ impl PointStage for LifecycleStage {
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
-        let mut out = Vec::new();
-        while !self.held.is_empty() {
-            out.extend(self.release());
-        }
-        Ok(out)
+        // `release` gives every held frame, oldest first, then `None`.
+        Ok(std::iter::from_fn(|| self.release()).collect())
     }
 }
 

@@ -227,11 +227,8 @@ impl PointStage for SmoothStage {
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
-        let mut out = Vec::new();
-        while !self.held.is_empty() {
-            out.extend(self.release());
-        }
-        Ok(out)
+        // `release` gives every held frame, oldest first, then `None`.
+        Ok(std::iter::from_fn(|| self.release()).collect())
     }
 }
 
@@ -246,14 +243,31 @@ mod tests {
         crate::track::point_at(frame, id, ObjectClass::Car, bbox)
     }
 
-    fn run(k: u32, input: Vec<FramePoints>) -> Result<Vec<FramePoints>> {
-        let mut s = SmoothStage::new(SmoothConfig::uniform(k))?;
+    fn run(config: SmoothConfig, input: Vec<FramePoints>) -> Result<Vec<FramePoints>> {
+        let mut s = SmoothStage::new(config)?;
         let mut out = Vec::new();
         for f in input {
             out.extend(s.push(f)?);
         }
         out.extend(s.finish()?);
         Ok(out)
+    }
+
+    /// Every point of `got` has the frame, id, class and box (to 1e-9 px) of the same
+    /// point of `want`, both in (frame, id) order.
+    fn assert_same_boxes(got: &[TrackPoint], want: &[TrackPoint]) {
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(want) {
+            assert_eq!((g.frame, g.id, &g.class), (w.frame, w.id, &w.class));
+            for (u, v) in [
+                (g.bbox.left, w.bbox.left),
+                (g.bbox.top, w.bbox.top),
+                (g.bbox.width, w.bbox.width),
+                (g.bbox.height, w.bbox.height),
+            ] {
+                assert!((u - v).abs() < 1e-9, "{g:?} {w:?}");
+            }
+        }
     }
 
     use crate::track::frames_of as frames;
@@ -302,7 +316,7 @@ mod tests {
         let pts: Vec<TrackPoint> = (1..=30)
             .map(|f| point(f, 1, 3.0 * f64::from(f), 40.0 - 0.5 * f64::from(f), 20.0))
             .collect();
-        let out = run(5, frames(&pts, 30))?;
+        let out = run(SmoothConfig::uniform(5), frames(&pts, 30))?;
         assert_eq!(out.len(), 30);
         for (f, p) in out.iter().zip(&pts) {
             assert_eq!(f.points.len(), 1);
@@ -334,22 +348,11 @@ mod tests {
             }
         }
         let k = 4;
-        let out = run(k, frames(&pts, 60))?;
+        let out = run(SmoothConfig::uniform(k), frames(&pts, 60))?;
         let got: Vec<TrackPoint> = out.iter().flat_map(|f| f.points.clone()).collect();
         let mut want = reference(&pts, k);
         want.sort_by_key(|p| (p.frame, p.id));
-        assert_eq!(got.len(), want.len());
-        for (g, w) in got.iter().zip(&want) {
-            assert_eq!((g.frame, g.id), (w.frame, w.id));
-            for (u, v) in [
-                (g.bbox.left, w.bbox.left),
-                (g.bbox.top, w.bbox.top),
-                (g.bbox.width, w.bbox.width),
-                (g.bbox.height, w.bbox.height),
-            ] {
-                assert!((u - v).abs() < 1e-9, "{g:?} {w:?}");
-            }
-        }
+        assert_same_boxes(&got, &want);
         // Away from the ends the ±2 px jitter falls below 0.5 px.
         let inner = got
             .iter()
@@ -371,7 +374,7 @@ mod tests {
             .map(|f| point(f, 1, f64::from(f * f), 0.0, 8.0))
             .collect();
         let input = frames(&pts, 5);
-        assert_eq!(run(0, input.clone())?, input);
+        assert_eq!(run(SmoothConfig::uniform(0), input.clone())?, input);
         let mut s = SmoothStage::new(SmoothConfig::uniform(2))?;
         s.push(input[2].clone())?;
         let e = s.push(input[1].clone()).expect_err("out of order");
@@ -407,27 +410,14 @@ mod tests {
             vehicle_half_window_frames: Some(6),
         };
         assert!(!config.is_off() && SmoothConfig::uniform(0).is_off());
-        let mut stage = SmoothStage::new(config)?;
-        let mut out = Vec::new();
-        for f in frames(&pts, 50) {
-            out.extend(stage.push(f)?);
-        }
-        out.extend(stage.finish()?);
+        let out = run(config, frames(&pts, 50))?;
         let got: Vec<TrackPoint> = out.iter().flat_map(|f| f.points.clone()).collect();
         let car: Vec<TrackPoint> = pts.iter().filter(|p| p.id == 1).cloned().collect();
         let rest: Vec<TrackPoint> = pts.iter().filter(|p| p.id != 1).cloned().collect();
         let mut want = reference(&car, 6);
         want.extend(reference(&rest, 2));
         want.sort_by_key(|p| (p.frame, p.id));
-        assert_eq!(got.len(), want.len());
-        for (g, w) in got.iter().zip(&want) {
-            assert_eq!((g.frame, g.id, &g.class), (w.frame, w.id, &w.class));
-            assert!(
-                (g.bbox.left - w.bbox.left).abs() < 1e-9
-                    && (g.bbox.height - w.bbox.height).abs() < 1e-9,
-                "{g:?} {w:?}"
-            );
-        }
+        assert_same_boxes(&got, &want);
         // The two windows differ where it shows: the car's fit is not the short one.
         let short = reference(&car, 2);
         assert!(
@@ -437,15 +427,11 @@ mod tests {
                 .any(|(g, s)| (g.bbox.left - s.bbox.left).abs() > 0.1)
         );
         // A vehicle window of 0 leaves the car's boxes as they came.
-        let mut stage = SmoothStage::new(SmoothConfig {
+        let config = SmoothConfig {
             half_window_frames: 2,
             vehicle_half_window_frames: Some(0),
-        })?;
-        let mut out = Vec::new();
-        for f in frames(&pts, 50) {
-            out.extend(stage.push(f)?);
-        }
-        out.extend(stage.finish()?);
+        };
+        let out = run(config, frames(&pts, 50))?;
         for g in out.iter().flat_map(|f| &f.points).filter(|p| p.id == 1) {
             assert_eq!(Some(g), car.iter().find(|c| c.frame == g.frame));
         }

@@ -265,7 +265,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
                 });
             }
             Progress::Checkpoint { step, weights } => {
-                roadtrack_cnn::centernet::write_onnx(&output, &to_cnn(weights)?)?;
+                roadtrack_cnn::centernet::write_onnx(&output, weights)?;
                 if let Some(p) = &d.weights_out {
                     roadtrack::io::atomic::write_bytes_atomic(p, weights.to_json()?.as_bytes())?;
                 }
@@ -280,7 +280,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     })
     .context("training the detector")?;
     bar.finish_and_clear();
-    roadtrack_cnn::centernet::write_onnx(&args.output, &to_cnn(&weights)?)
+    roadtrack_cnn::centernet::write_onnx(&args.output, &weights)
         .with_context(|| format!("writing {}", args.output.display()))?;
     ui.info(format!(
         "wrote {} ({} steps{})",
@@ -289,12 +289,4 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
         smooth.map_or(String::new(), |s| format!(", final loss {s:.4}"))
     ));
     Ok(())
-}
-
-/// The trainer's weights in roadtrack-cnn's form (through their shared JSON).
-#[cfg(feature = "learn")]
-fn to_cnn(
-    w: &roadtrack_learn::arch::CenterNetWeights,
-) -> roadtrack::Result<roadtrack_cnn::centernet::CenterNetWeights> {
-    roadtrack_cnn::centernet::CenterNetWeights::from_json(&w.to_json()?)
 }
