@@ -3,6 +3,9 @@
 //!
 //!     cargo run --release -p roadtrack-cnn --example prof_detector -- models/detector.onnx [H W]
 //!
+//! With `TAIL=1`: the learned detector's network after its stem, as the detector runs it
+//! (input `r3`, `1 × c2 × H/4 × W/4`), and the stem in roadtrack's kernels.
+//!
 //! Runs 30 passes on a constant `1 × 3 × H × W` input (default 480 × 640) and prints, per
 //! node, the fastest of its 30 times, and the fastest whole pass.
 
@@ -18,13 +21,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args.get(1).ok_or("usage: prof_detector MODEL.onnx [H W]")?;
     let h: usize = args.get(2).map_or(Ok(480), |s| s.parse())?;
     let w: usize = args.get(3).map_or(Ok(640), |s| s.parse())?;
-    let proto = pb::ModelProto::decode(std::fs::read(path)?.as_slice())?;
+    // `TAIL=1`: the learned detector's network after its stem (input `r3`, stride 4).
+    let tail = std::env::var_os("TAIL").is_some();
+    let (proto, dims) = if tail {
+        let net = roadtrack_cnn::centernet::read_weights(std::path::Path::new(path))?;
+        let c2 = net.shape.c2;
+        (
+            roadtrack_cnn::centernet::onnx_tail_model(&net)?,
+            [1, c2, h / 4, w / 4],
+        )
+    } else {
+        (
+            pb::ModelProto::decode(std::fs::read(path)?.as_slice())?,
+            [1, 3, h, w],
+        )
+    };
     let plan = tract_onnx::onnx()
         .model_for_proto_model(&proto)?
-        .with_input_fact(0, f32::fact([1, 3, h, w]).into())?
+        .with_input_fact(0, f32::fact(dims).into())?
         .into_optimized()?
         .into_runnable()?;
-    let input = Tensor::from_shape(&[1, 3, h, w], &vec![0.1f32; 3 * h * w])?;
+    let input = Tensor::from_shape(&dims, &vec![0.1f32; dims.iter().product()])?;
     let mut best: BTreeMap<usize, (String, f64)> = BTreeMap::new();
     let mut total = f64::MAX;
     for _ in 0..30 {
@@ -45,6 +62,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for (id, name, t) in times {
             let e = best.entry(id).or_insert((name, f64::MAX));
             e.1 = e.1.min(t);
+        }
+    }
+    if tail {
+        // The stem in roadtrack's kernels, on the same size of input.
+        let net = roadtrack_cnn::centernet::read_weights(std::path::Path::new(path))?;
+        if let Some(stem) = roadtrack_cnn::centernet::stem::Stem::new(&net) {
+            let x = vec![0.1f32; 3 * h * w];
+            let mut fastest = f64::MAX;
+            for _ in 0..30 {
+                let t0 = Instant::now();
+                std::hint::black_box(stem.run(&x, h, w, true));
+                fastest = fastest.min(t0.elapsed().as_secs_f64() * 1e3);
+            }
+            println!("stem (conv1-conv3, roadtrack's kernels): fastest {fastest:.2} ms");
         }
     }
     let sum: f64 = best.values().map(|v| v.1).sum();

@@ -100,15 +100,18 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             };
             let path = default_model_path();
             if path.is_file() {
-                // The defaults; without the test-time flip (`--no-flip`): half the compute;
-                // with the zoomed level (`--zoom-small 12`): four times the full-size
-                // level's compute.
+                // The defaults; the same with the whole network in tract (the stem's own
+                // kernels left out); without the test-time flip (`--no-flip`): half the
+                // compute; with the zoomed level (`--zoom-small 12`): four times the
+                // full-size level's compute.
                 let d = CenterNetConfig::default;
-                for (name, config) in [
-                    ("detect-cnn", d()),
+                for (name, config, whole) in [
+                    ("detect-cnn", d(), false),
+                    ("detect-cnn, whole network in tract", d(), true),
                     (
                         "detect-cnn --no-flip",
                         CenterNetConfig { flip: false, ..d() },
+                        false,
                     ),
                     (
                         "detect-cnn --zoom-small 12",
@@ -116,9 +119,13 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                             zoom_max_side: 12.0,
                             ..d()
                         },
+                        false,
                     ),
                 ] {
                     let mut det = CenterNetDetector::load(&path, &config)?;
+                    if whole {
+                        det = det.whole_in_tract();
+                    }
                     results.push(bench::detect_with(
                         name,
                         "generated 640×480, 12 boxes",

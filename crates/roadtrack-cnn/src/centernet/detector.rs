@@ -9,6 +9,7 @@ use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use tract_onnx::prelude::*;
 
+use super::stem::{C2, Stem};
 use super::{CLASSES, INPUT_MULTIPLE, KIND, STRIDE, channel_class};
 use crate::detector::decode::{Candidate, nms};
 use crate::onnx::{
@@ -222,6 +223,29 @@ pub struct HeatMaps {
     pub boxes: Vec<f32>,
 }
 
+/// A network cut in two: [`Stem`] and the ONNX of the rest ([`super::onnx_tail_model`]).
+struct Split {
+    stem: Stem,
+    tail: tract_onnx::pb::ModelProto,
+}
+
+/// The split of the model `proto` (at `path`): when it is the graph `roadtrack train
+/// --detector` writes ([`super::onnx_model`]) with the widths the stem's kernels are built
+/// for. `None` otherwise.
+// Choice: only a graph equal node for node to the one roadtrack writes is cut, so a model
+// edited by hand still runs as it is written, whole in tract.
+fn split_of(proto: &tract_onnx::pb::ModelProto, path: &Path) -> Option<Split> {
+    let net = super::weights_of(proto, path).ok()?;
+    let ours = super::onnx_model(&net).ok()?;
+    if ours.graph.as_ref()?.node != proto.graph.as_ref()?.node {
+        return None;
+    }
+    Some(Split {
+        stem: Stem::new(&net)?,
+        tail: super::onnx_tail_model(&net).ok()?,
+    })
+}
+
 /// The learned centre-point detector (module docs of [`super`]).
 pub struct CenterNetDetector {
     path: PathBuf,
@@ -229,6 +253,9 @@ pub struct CenterNetDetector {
     prep: Preprocessing,
     config: CenterNetConfig,
     plans: Mutex<HashMap<(usize, usize), Arc<TypedRunnableModel>>>,
+    /// The network cut after `conv3`: its stem in roadtrack's kernels, the rest in tract
+    /// (`None`: the whole network in tract).
+    split: Option<Split>,
     /// With the zoom: the camera, to enlarge only the rows where objects are small.
     zoom_calibration: Option<Calibration>,
 }
@@ -263,12 +290,14 @@ impl CenterNetDetector {
         }
         let prep = preprocessing_from_metadata(&proto);
         prep.validate()?;
+        let split = split_of(&proto, path);
         let det = Self {
             path: path.to_path_buf(),
             proto,
             prep,
             config: config.clone(),
             plans: Mutex::new(HashMap::new()),
+            split,
             zoom_calibration: None,
         };
         // Fail now on a model tract cannot run or with other outputs.
@@ -287,6 +316,21 @@ impl CenterNetDetector {
             ));
         }
         Ok(det)
+    }
+
+    /// The same detector with the whole network run by tract, its stem too (for
+    /// comparisons: `roadtrack bench` and the tests).
+    #[must_use]
+    pub fn whole_in_tract(mut self) -> Self {
+        self.split = None;
+        self.plans = Mutex::new(HashMap::new());
+        self
+    }
+
+    /// Whether the network's stem runs in roadtrack's kernels ([`Stem`]) and the rest in
+    /// tract; `false`: the whole network in tract.
+    pub fn is_split(&self) -> bool {
+        self.split.is_some()
     }
 
     /// The model file.
@@ -316,8 +360,12 @@ impl CenterNetDetector {
         if let Some(p) = plans.get(&(h, w)) {
             return Ok(Arc::clone(p));
         }
-        let plan = tract_load(&self.proto, [1, 3, h, w])
-            .map_err(|e| model_error(&self.path, format!("tract cannot load it: {e:#}")))?;
+        let loaded = match &self.split {
+            Some(split) => tract_load(&split.tail, [1, C2, h / 4, w / 4]),
+            None => tract_load(&self.proto, [1, 3, h, w]),
+        };
+        let plan =
+            loaded.map_err(|e| model_error(&self.path, format!("tract cannot load it: {e:#}")))?;
         plans.insert((h, w), Arc::clone(&plan));
         Ok(plan)
     }
@@ -330,7 +378,14 @@ impl CenterNetDetector {
         w: usize,
     ) -> Result<(tract_ndarray::ArrayD<f32>, tract_ndarray::ArrayD<f32>)> {
         let plan = self.plan(h, w)?;
-        let t = Tensor::from_shape(&[1, 3, h, w], &input).map_err(|e| self.run_error(e))?;
+        let t = match &self.split {
+            Some(split) => {
+                let r3 = split.stem.run(&input, h, w, true);
+                Tensor::from_shape(&[1, C2, h / 4, w / 4], &r3)
+            }
+            None => Tensor::from_shape(&[1, 3, h, w], &input),
+        }
+        .map_err(|e| self.run_error(e))?;
         let out = plan.run(tvec![t.into()]).map_err(|e| self.run_error(e))?;
         if out.len() != 2 {
             return Err(model_error(

@@ -14,6 +14,7 @@
 //! ([`onnx_model`]) and the detector ([`CenterNetDetector`], in `detector.rs`).
 
 mod detector;
+pub mod stem;
 #[cfg(test)]
 mod tests;
 
@@ -53,10 +54,26 @@ pub fn is_centernet_file(path: &Path) -> bool {
 /// # Errors
 /// Weights that do not match the shape.
 pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
+    model(net, false)
+}
+
+/// The network after its stem ([`stem::Stem`]): [`onnx_model`] without `conv1`–`conv3`,
+/// its input `r3` (`N × c2 × H/4 × W/4`, the stem's output).
+///
+/// # Errors
+/// Weights that do not match the shape.
+pub fn onnx_tail_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
+    model(net, true)
+}
+
+/// [`onnx_model`], or with `tail` [`onnx_tail_model`].
+fn model(net: &CenterNetWeights, tail: bool) -> Result<pb::ModelProto> {
     net.validate()?;
     let specs = net.shape.layers();
+    // The stem's layers, left out of the tail.
+    let first = if tail { 3 } else { 0 };
     let mut initializer = Vec::new();
-    for (s, l) in specs.iter().zip(&net.layers) {
+    for (s, l) in specs.iter().zip(&net.layers).skip(first) {
         initializer.push(float_tensor(
             &format!("{}.w", s.name),
             &s.weight_dims(),
@@ -96,8 +113,8 @@ pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
     };
     let relu = |input: &str, output: &str| node("Relu", &[input], output, vec![]);
     let mut nodes = Vec::new();
-    let mut prev = "input".to_string();
-    for i in 1..=7 {
+    let mut prev = if tail { "r3" } else { "input" }.to_string();
+    for i in first + 1..=7 {
         let name = format!("conv{i}");
         nodes.push(layer(&name, &prev, &format!("c{i}")));
         nodes.push(relu(&format!("c{i}"), &format!("r{i}")));
@@ -132,11 +149,15 @@ pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
             node: nodes,
             name: "roadtrack_centernet".into(),
             initializer,
-            input: vec![value_info(
-                "input",
-                &[None, Some(3), None, None],
-                &["N", "H", "W"],
-            )],
+            input: vec![if tail {
+                value_info(
+                    "r3",
+                    &[None, Some(net.shape.c2 as i64), None, None],
+                    &["N", "H4", "W4"],
+                )
+            } else {
+                value_info("input", &[None, Some(3), None, None], &["N", "H", "W"])
+            }],
             output: vec![
                 value_info("heatmap", &out_dims(CLASSES as i64), &["N", "H4", "W4"]),
                 value_info("boxes", &out_dims(4), &["N", "H4", "W4"]),
@@ -168,7 +189,13 @@ pub fn read_weights(path: &Path) -> Result<CenterNetWeights> {
     let bytes = std::fs::read(path).map_err(|e| roadtrack::Error::io(path, e))?;
     let proto = pb::ModelProto::decode(bytes.as_slice())
         .map_err(|e| model_error(path, format!("not an ONNX file ({e})")))?;
-    if super::onnx::metadata(&proto, "roadtrack.kind") != Some(KIND) {
+    weights_of(&proto, path)
+}
+
+/// [`read_weights`] of a decoded model (`path` names it in errors).
+pub(crate) fn weights_of(proto: &pb::ModelProto, path: &Path) -> Result<CenterNetWeights> {
+    use super::onnx::model_error;
+    if super::onnx::metadata(proto, "roadtrack.kind") != Some(KIND) {
         return Err(model_error(
             path,
             format!("not a learned detector (metadata roadtrack.kind is not {KIND:?})"),
@@ -218,7 +245,7 @@ pub fn read_weights(path: &Path) -> Result<CenterNetWeights> {
         let (_, bias) = tensor(&format!("{}.b", s.name))?;
         layers.push(LayerWeights { weight, bias });
     }
-    let p = super::onnx::preprocessing_from_metadata(&proto);
+    let p = super::onnx::preprocessing_from_metadata(proto);
     let net = CenterNetWeights {
         shape,
         layers,

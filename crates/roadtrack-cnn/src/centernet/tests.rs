@@ -844,3 +844,95 @@ fn the_average_of_networks_is_their_element_wise_mean() -> Result<()> {
     assert!(CenterNetWeights::average(&[]).is_err());
     Ok(())
 }
+
+/// A default-shape network with reproducible random weights, written as ONNX into `dir`.
+fn random_default_net(dir: &Path) -> Result<PathBuf> {
+    let shape = CenterNetShape::default();
+    let layers = shape
+        .layers()
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            // Scaled so the activations neither vanish nor blow up through ten layers.
+            let fan_in = (s.cin * s.k * s.k) as f32;
+            let scale = 2.0 * (3.0 / fan_in).sqrt();
+            LayerWeights {
+                weight: stem::tests::values(s.weight_len(), 100 + i as u64)
+                    .iter()
+                    .map(|v| v * scale)
+                    .collect(),
+                bias: stem::tests::values(s.cout, 200 + i as u64),
+            }
+        })
+        .collect();
+    let net = CenterNetWeights {
+        shape,
+        layers,
+        preprocessing: roadtrack::detect::centernet::Preprocessing {
+            input_scale: 1.0 / 255.0,
+            mean: [0.5; 3],
+            std: [0.25; 3],
+        },
+    };
+    let path = dir.join("random.onnx");
+    write_onnx(&path, &net)?;
+    Ok(path)
+}
+
+#[test]
+fn the_network_cut_after_its_stem_gives_what_tract_gives_on_the_whole() -> Result<()> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let path = random_default_net(dir.path())?;
+    let split = CenterNetDetector::load(&path, &CenterNetConfig::default())?;
+    assert!(split.is_split());
+    let whole = CenterNetDetector::load(&path, &CenterNetConfig::default())?.whole_in_tract();
+    assert!(!whole.is_split());
+    for (h, w) in [(16, 16), (48, 80), (96, 64)] {
+        let input = stem::tests::values(3 * h * w, (h * w) as u64);
+        let a = split.forward(input.clone(), h, w)?;
+        let b = whole.forward(input, h, w)?;
+        let spread = b.1.iter().fold(0f32, |m, v| m.max(v.abs()));
+        assert!(spread > 0.1, "trivially small outputs ({spread})");
+        for (name, x, y) in [("heatmap", &a.0, &b.0), ("boxes", &a.1, &b.1)] {
+            assert_eq!(x.len(), y.len());
+            for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                assert!((p - q).abs() < 1e-4, "{h} x {w} {name}[{i}]: {p} vs {q}");
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn the_shipped_model_finds_the_same_boxes_cut_or_whole() -> Result<()> {
+    let image = held_out_aerial_frame()?;
+    let split = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?;
+    assert!(split.is_split());
+    let whole = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?.whole_in_tract();
+    let a = split.detect_boxes(&image)?;
+    let b = whole.detect_boxes(&image)?;
+    assert!(a.len() > 5, "{} boxes", a.len());
+    assert_eq!(a.len(), b.len());
+    for ((ba, ca, sa), (bb, cb, sb)) in a.iter().zip(&b) {
+        assert_eq!(ca, cb);
+        assert!((sa - sb).abs() < 1e-4, "score {sa} vs {sb}");
+        for (p, q) in [
+            (ba.left, bb.left),
+            (ba.top, bb.top),
+            (ba.width, bb.width),
+            (ba.height, bb.height),
+        ] {
+            assert!((p - q).abs() < 1e-2, "{ba:?} vs {bb:?}");
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn a_network_of_other_widths_runs_whole_in_tract() -> Result<()> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let path = dir.path().join("parity.onnx");
+    write_onnx(&path, &parity_weights()?)?;
+    assert!(!CenterNetDetector::load(&path, &CenterNetConfig::default())?.is_split());
+    Ok(())
+}
