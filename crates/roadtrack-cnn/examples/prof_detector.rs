@@ -76,6 +76,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 fastest = fastest.min(t0.elapsed().as_secs_f64() * 1e3);
             }
             println!("stem (conv1-conv3, roadtrack's kernels): fastest {fastest:.2} ms");
+            // Each kernel alone on bordered channels-last buffers (values 0.1).
+            let fastest_of = |f: &mut dyn FnMut()| {
+                (0..30)
+                    .map(|_| {
+                        let t0 = Instant::now();
+                        f();
+                        t0.elapsed().as_secs_f64() * 1e3
+                    })
+                    .fold(f64::MAX, f64::min)
+            };
+            use roadtrack_cnn::centernet::stem::{C1, C2};
+            let (c1, c2, c3) = stem.layers();
+            let (h1, w1, h2, w2) = (h / 2, w / 2, h / 4, w / 4);
+            let x = vec![0.1f32; (h + 2) * (w + 2) * 3];
+            let mut r1 = vec![0.0f32; (h1 + 2) * (w1 + 2) * C1];
+            let mut r2 = vec![0.0f32; (h2 + 2) * (w2 + 2) * C2];
+            let mut r3 = r2.clone();
+            let t1 = fastest_of(&mut || c1.run::<2>(&x, w, &mut r1, h1, w1));
+            let t2 = fastest_of(&mut || c2.run::<2>(&r1, w1, &mut r2, h2, w2));
+            let t3 = fastest_of(&mut || c3.run::<1>(&r2, w2, &mut r3, h2, w2));
+            for (name, t, macs) in [
+                ("conv1", t1, h1 * w1 * C1 * 27),
+                ("conv2", t2, h2 * w2 * C2 * C1 * 9),
+                ("conv3", t3, h2 * w2 * C2 * C2 * 9),
+            ] {
+                println!("  {name}: {t:.2} ms, {:.1} GMAC/s", macs as f64 / t / 1e6);
+            }
         }
     }
     let sum: f64 = best.values().map(|v| v.1).sum();

@@ -274,6 +274,11 @@ impl Stem {
         })
     }
 
+    /// The three layers (for per-layer timing: the `prof_detector` example).
+    pub fn layers(&self) -> (&Conv3<3, C1>, &Conv3<C1, C2>, &Conv3<C2, C2>) {
+        (&self.conv1, &self.conv2, &self.conv3)
+    }
+
     /// `r3` of a preprocessed planar `3 × h × w` input (`h`, `w` multiples of 4): planar
     /// `C2 × h/4 × w/4`, as tract's `r3`. `simd = false` forces the portable kernel.
     ///
