@@ -379,10 +379,17 @@ impl CenterNetDetector {
     ) -> Result<(tract_ndarray::ArrayD<f32>, tract_ndarray::ArrayD<f32>)> {
         let plan = self.plan(h, w)?;
         let t = match &self.split {
-            Some(split) => {
-                let r3 = split.stem.run(&input, h, w, true);
-                Tensor::from_shape(&[1, C2, h / 4, w / 4], &r3)
-            }
+            Some(split) => Tensor::zero::<f32>(&[1, C2, h / 4, w / 4]).and_then(|mut t| {
+                let mut view = t.to_plain_array_view_mut::<f32>()?;
+                let r3 = view.as_slice_mut().ok_or_else(|| {
+                    tract_onnx::tract_core::internal::format_err!(
+                        "a new tensor that is not contiguous"
+                    )
+                })?;
+                split.stem.run_into(&input, h, w, true, r3);
+                drop(view);
+                Ok(t)
+            }),
             None => Tensor::from_shape(&[1, 3, h, w], &input),
         }
         .map_err(|e| self.run_error(e))?;

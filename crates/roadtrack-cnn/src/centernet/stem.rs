@@ -68,6 +68,7 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
     }
 
     /// [`Conv3::run`]; `simd = false` forces the portable path (tests compare both).
+    #[allow(unsafe_code)]
     pub fn run_with<const S: usize>(
         &self,
         input: &[f32],
@@ -93,10 +94,16 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
             "conv3x3: output of {} values, too short",
             out.len()
         );
-        // Each tap's offset from its window's top-left value, in `taps` order.
-        let offsets: Vec<usize> = (0..9 * CIN)
-            .map(|t| (t / CIN / 3) * in_row + (t / CIN % 3) * CIN + t % CIN)
-            .collect();
+        let g = Geometry {
+            // Each tap's offset from its window's top-left value, in `taps` order.
+            offsets: (0..9 * CIN)
+                .map(|t| (t / CIN / 3) * in_row + (t / CIN % 3) * CIN + t % CIN)
+                .collect(),
+            in_row,
+            out_row,
+            oh,
+            ow,
+        };
         #[cfg(target_arch = "x86_64")]
         if simd
             && COUT.is_multiple_of(8)
@@ -104,31 +111,30 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
             && std::arch::is_x86_feature_detected!("avx2")
             && std::arch::is_x86_feature_detected!("fma")
         {
-            self.rows_avx2_dispatch::<S>(&offsets, input, in_row, out, out_row, oh, ow);
+            // SAFETY: the CPU has AVX2 and FMA (checked just above), `COUT` is 8, 16 or 24,
+            // and the buffers' sizes that the kernel's loads and stores rely on are asserted
+            // above. As many pixels at a time as keep 12 accumulators.
+            unsafe {
+                if COUT <= 16 {
+                    self.rows_avx2::<S, 6>(&g, input, out);
+                } else {
+                    self.rows_avx2::<S, 4>(&g, input, out);
+                }
+            }
             return;
         }
         let _ = simd;
-        self.rows_portable::<S>(&offsets, input, in_row, out, out_row, oh, ow);
+        self.rows_portable::<S>(&g, input, out);
     }
 
     /// The portable kernel: one output pixel at a time, a multiply and an add per weight.
-    #[allow(clippy::too_many_arguments)]
-    fn rows_portable<const S: usize>(
-        &self,
-        offsets: &[usize],
-        input: &[f32],
-        in_row: usize,
-        out: &mut [f32],
-        out_row: usize,
-        oh: usize,
-        ow: usize,
-    ) {
-        for oy in 0..oh {
-            let dst = &mut out[(oy + 1) * out_row + COUT..][..ow * COUT];
+    fn rows_portable<const S: usize>(&self, g: &Geometry, input: &[f32], out: &mut [f32]) {
+        for oy in 0..g.oh {
+            let dst = &mut out[(oy + 1) * g.out_row + COUT..][..g.ow * COUT];
             for (ox, d) in dst.chunks_exact_mut(COUT).enumerate() {
-                let base = S * (oy * in_row + ox * CIN);
+                let base = S * (oy * g.in_row + ox * CIN);
                 let mut acc = self.bias;
-                for (w, &off) in self.taps.iter().zip(offsets) {
+                for (w, &off) in self.taps.iter().zip(&g.offsets) {
                     let x = input[base + off];
                     for (a, &w) in acc.iter_mut().zip(w) {
                         *a += x * w;
@@ -141,50 +147,23 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
         }
     }
 
-    /// [`Conv3::rows_avx2`] with as many pixels at a time as keep 12 accumulators.
-    #[cfg(target_arch = "x86_64")]
-    #[allow(unsafe_code, clippy::too_many_arguments)]
-    fn rows_avx2_dispatch<const S: usize>(
-        &self,
-        offsets: &[usize],
-        input: &[f32],
-        in_row: usize,
-        out: &mut [f32],
-        out_row: usize,
-        oh: usize,
-        ow: usize,
-    ) {
-        // SAFETY: the caller checked that the CPU has AVX2 and FMA, the target features of
-        // `rows_avx2`, and the buffers' sizes that its loads and stores rely on.
-        unsafe {
-            if COUT <= 16 {
-                self.rows_avx2::<S, 6>(offsets, input, in_row, out, out_row, oh, ow);
-            } else {
-                self.rows_avx2::<S, 4>(offsets, input, in_row, out, out_row, oh, ow);
-            }
-        }
-    }
-
     /// The AVX2 + FMA kernel: `P` output pixels of a row at a time, `COUT / 8` vectors each.
     ///
     /// # Safety
-    /// The CPU has AVX2 and FMA; `COUT` is 8, 16 or 24; `offsets` are [`Conv3::run_with`]'s
-    /// (each below `3 · in_row`); `input` holds `(S · (oh − 1) + 3) · in_row` values with
+    /// The CPU has AVX2 and FMA; `COUT` is 8, 16 or 24; `g` is [`Conv3::run_with`]'s (each
+    /// offset below `3 · in_row`); `input` holds `(S · (oh − 1) + 3) · in_row` values with
     /// `S · (ow − 1) + 3 ≤ in_row / CIN`, and `out` `(oh + 2) · out_row` with `out_row =
     /// (ow + 2) · COUT`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    #[allow(unsafe_code, clippy::too_many_arguments)]
+    #[allow(unsafe_code)]
     unsafe fn rows_avx2<const S: usize, const P: usize>(
         &self,
-        offsets: &[usize],
+        g: &Geometry,
         input: &[f32],
-        in_row: usize,
         out: &mut [f32],
-        out_row: usize,
-        oh: usize,
-        ow: usize,
     ) {
+        let (in_row, out_row, oh, ow) = (g.in_row, g.out_row, g.oh, g.ow);
         use std::arch::x86_64::{
             _mm256_broadcast_ss, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_max_ps,
             _mm256_setzero_ps, _mm256_storeu_ps,
@@ -211,7 +190,7 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
                             *a = _mm256_loadu_ps(self.bias.as_ptr().add(8 * v));
                         }
                     }
-                    for (w, &off) in self.taps.iter().zip(offsets) {
+                    for (w, &off) in self.taps.iter().zip(&g.offsets) {
                         let wp = w.as_ptr();
                         let w0 = _mm256_loadu_ps(wp);
                         let w1 = if vectors > 1 {
@@ -250,6 +229,20 @@ impl<const CIN: usize, const COUT: usize> Conv3<CIN, COUT> {
     }
 }
 
+/// One layer call's sizes, checked by [`Conv3::run_with`], that the kernels index by.
+struct Geometry {
+    /// Each tap's offset from its window's top-left value, in `taps` order.
+    offsets: Vec<usize>,
+    /// Values per input row (border included).
+    in_row: usize,
+    /// Values per output row (border included).
+    out_row: usize,
+    /// Output rows (interior).
+    oh: usize,
+    /// Output columns (interior).
+    ow: usize,
+}
+
 /// `conv1`–`conv3` of a network of the default widths ([`C1`], [`C2`]).
 #[derive(Debug, Clone)]
 pub struct Stem {
@@ -285,6 +278,17 @@ impl Stem {
     /// # Panics
     /// When `input` is shorter than `3 · h · w`.
     pub fn run(&self, input: &[f32], h: usize, w: usize, simd: bool) -> Vec<f32> {
+        let mut out = vec![0.0; C2 * h.div_ceil(4) * w.div_ceil(4)];
+        self.run_into(input, h, w, simd, &mut out);
+        out
+    }
+
+    /// [`Stem::run`] into `out` (`C2 · h/4 · w/4` values; the detector passes tract's input
+    /// tensor, so `r3` is written once).
+    ///
+    /// # Panics
+    /// When `input` or `out` is shorter than that.
+    pub fn run_into(&self, input: &[f32], h: usize, w: usize, simd: bool, out: &mut [f32]) {
         let (h1, w1) = (h.div_ceil(2), w.div_ceil(2));
         let (h2, w2) = (h1.div_ceil(2), w1.div_ceil(2));
         BUFFERS.with_borrow_mut(|cache| {
@@ -310,8 +314,8 @@ impl Stem {
             self.conv1.run_with::<2>(&b.x, w, &mut b.r1, h1, w1, simd);
             self.conv2.run_with::<2>(&b.r1, w1, &mut b.r2, h2, w2, simd);
             self.conv3.run_with::<1>(&b.r2, w2, &mut b.r3, h2, w2, simd);
-            planar(&b.r3, h2, w2)
-        })
+            planar(&b.r3, h2, w2, out);
+        });
     }
 }
 
@@ -349,9 +353,9 @@ fn channels_last(input: &[f32], h: usize, w: usize, out: &mut [f32]) {
     }
 }
 
-/// The interior of a channels-last `(h + 2) × (w + 2) × C2` buffer as planar `C2 × h × w`.
-fn planar(buf: &[f32], h: usize, w: usize) -> Vec<f32> {
-    let mut out = vec![0.0; C2 * h * w];
+/// The interior of a channels-last `(h + 2) × (w + 2) × C2` buffer into planar `C2 × h × w`
+/// `out`.
+fn planar(buf: &[f32], h: usize, w: usize, out: &mut [f32]) {
     for y in 0..h {
         let src = &buf[((y + 1) * (w + 2) + 1) * C2..][..w * C2];
         for (x, px) in src.chunks_exact(C2).enumerate() {
@@ -360,7 +364,6 @@ fn planar(buf: &[f32], h: usize, w: usize) -> Vec<f32> {
             }
         }
     }
-    out
 }
 
 #[cfg(test)]
