@@ -3,8 +3,8 @@
 //!
 //!     cargo run --release -p roadtrack-cnn --example prof_detector -- models/detector.onnx [H W]
 //!
-//! With `TAIL=1`: the learned detector's network after its stem, as the detector runs it
-//! (input `r3`, `1 × c2 × H/4 × W/4`), and the stem in roadtrack's kernels.
+//! With `NATIVE=1`: also the learned detector's network in roadtrack's own kernels (as the
+//! detector runs it), whole and layer by layer, with each layer's GMAC/s.
 //!
 //! Runs 30 passes on a constant `1 × 3 × H × W` input (default 480 × 640) and prints, per
 //! node, the fastest of its 30 times, and the fastest whole pass.
@@ -21,21 +21,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args.get(1).ok_or("usage: prof_detector MODEL.onnx [H W]")?;
     let h: usize = args.get(2).map_or(Ok(480), |s| s.parse())?;
     let w: usize = args.get(3).map_or(Ok(640), |s| s.parse())?;
-    // `TAIL=1`: the learned detector's network after its stem (input `r3`, stride 4).
-    let tail = std::env::var_os("TAIL").is_some();
-    let (proto, dims) = if tail {
-        let net = roadtrack_cnn::centernet::read_weights(std::path::Path::new(path))?;
-        let c2 = net.shape.c2;
-        (
-            roadtrack_cnn::centernet::onnx_tail_model(&net)?,
-            [1, c2, h / 4, w / 4],
-        )
-    } else {
-        (
-            pb::ModelProto::decode(std::fs::read(path)?.as_slice())?,
-            [1, 3, h, w],
-        )
-    };
+    let native = std::env::var_os("NATIVE").is_some();
+    let (proto, dims) = (
+        pb::ModelProto::decode(std::fs::read(path)?.as_slice())?,
+        [1, 3, h, w],
+    );
     let plan = tract_onnx::onnx()
         .model_for_proto_model(&proto)?
         .with_input_fact(0, f32::fact(dims).into())?
@@ -64,45 +54,70 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             e.1 = e.1.min(t);
         }
     }
-    if tail {
-        // The stem in roadtrack's kernels, on the same size of input.
+    if native {
+        use roadtrack_cnn::centernet::native::Isa;
+        // `ISA=avx2` or `ISA=portable` caps the kernels' instruction set.
+        let isa = match std::env::var("ISA").as_deref() {
+            Ok("avx2") => Isa::Avx2,
+            Ok("portable") => Isa::Portable,
+            _ => Isa::best(),
+        };
+        println!("instruction set: {isa:?}");
+        // The same pass in roadtrack's kernels: the fastest of 30, whole and per step.
         let net = roadtrack_cnn::centernet::read_weights(std::path::Path::new(path))?;
-        if let Some(stem) = roadtrack_cnn::centernet::stem::Stem::new(&net) {
-            let x = vec![0.1f32; 3 * h * w];
-            let mut fastest = f64::MAX;
-            for _ in 0..30 {
-                let t0 = Instant::now();
-                std::hint::black_box(stem.run(&x, h, w, true));
-                fastest = fastest.min(t0.elapsed().as_secs_f64() * 1e3);
+        let Some(nn) = roadtrack_cnn::centernet::native::NativeNet::new(&net) else {
+            return Err("not a network the native kernels run".into());
+        };
+        let x = vec![0.1f32; 3 * h * w];
+        use roadtrack_cnn::centernet::native::channels_last;
+        let steps = roadtrack_cnn::centernet::native::STEPS;
+        let mut step_best = vec![f64::MAX; steps.len()];
+        let mut fastest = f64::MAX;
+        for _ in 0..30 {
+            let t0 = Instant::now();
+            let mut last = t0;
+            let mut k = 0;
+            std::hint::black_box(nn.run_with(
+                h,
+                w,
+                isa,
+                &mut |b| channels_last(&x, h, w, b),
+                &mut |_| {
+                    let now = Instant::now();
+                    step_best[k] = step_best[k].min((now - last).as_secs_f64() * 1e3);
+                    last = now;
+                    k += 1;
+                },
+            ));
+            fastest = fastest.min(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        // Each step's multiply-accumulates: conv1..conv7, up1, up2, head, heat + box.
+        let layers = net.shape.layers();
+        let mut macs = vec![0u64; steps.len()];
+        let (mut ch, mut cw) = (h, w);
+        for (i, l) in layers.iter().enumerate() {
+            let step = (i + 1).min(11);
+            match l.kind {
+                roadtrack_cnn::centernet::LayerKind::Conv => {
+                    ch = (ch + 2 * l.pad - l.k) / l.stride + 1;
+                    cw = (cw + 2 * l.pad - l.k) / l.stride + 1;
+                    macs[step] += (ch * cw * l.weight_len()) as u64;
+                }
+                roadtrack_cnn::centernet::LayerKind::Deconv => {
+                    macs[step] += (ch * cw * l.weight_len()) as u64;
+                    ch *= 2;
+                    cw *= 2;
+                }
             }
-            println!("stem (conv1-conv3, roadtrack's kernels): fastest {fastest:.2} ms");
-            // Each kernel alone on bordered channels-last buffers (values 0.1).
-            let fastest_of = |f: &mut dyn FnMut()| {
-                (0..30)
-                    .map(|_| {
-                        let t0 = Instant::now();
-                        f();
-                        t0.elapsed().as_secs_f64() * 1e3
-                    })
-                    .fold(f64::MAX, f64::min)
+        }
+        println!("native (roadtrack's kernels): fastest pass {fastest:.2} ms");
+        for ((name, t), m) in steps.iter().zip(&step_best).zip(&macs) {
+            let rate = if *m > 0 {
+                format!(", {:.1} GMAC/s", *m as f64 / t / 1e6)
+            } else {
+                String::new()
             };
-            use roadtrack_cnn::centernet::stem::{C1, C2};
-            let (c1, c2, c3) = stem.layers();
-            let (h1, w1, h2, w2) = (h / 2, w / 2, h / 4, w / 4);
-            let x = vec![0.1f32; (h + 2) * (w + 2) * 3];
-            let mut r1 = vec![0.0f32; (h1 + 2) * (w1 + 2) * C1];
-            let mut r2 = vec![0.0f32; (h2 + 2) * (w2 + 2) * C2];
-            let mut r3 = r2.clone();
-            let t1 = fastest_of(&mut || c1.run::<2>(&x, w, &mut r1, h1, w1));
-            let t2 = fastest_of(&mut || c2.run::<2>(&r1, w1, &mut r2, h2, w2));
-            let t3 = fastest_of(&mut || c3.run::<1>(&r2, w2, &mut r3, h2, w2));
-            for (name, t, macs) in [
-                ("conv1", t1, h1 * w1 * C1 * 27),
-                ("conv2", t2, h2 * w2 * C2 * C1 * 9),
-                ("conv3", t3, h2 * w2 * C2 * C2 * 9),
-            ] {
-                println!("  {name}: {t:.2} ms, {:.1} GMAC/s", macs as f64 / t / 1e6);
-            }
+            println!("  {name:16} {t:6.2} ms{rate}");
         }
     }
     let sum: f64 = best.values().map(|v| v.1).sum();

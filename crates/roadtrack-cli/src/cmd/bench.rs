@@ -100,8 +100,8 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             };
             let path = default_model_path();
             if path.is_file() {
-                // The defaults; the same with the whole network in tract (the stem's own
-                // kernels left out); without the test-time flip (`--no-flip`): half the
+                // The defaults; the same with the network in tract instead of roadtrack's
+                // kernels; without the test-time flip (`--no-flip`): half the
                 // compute; with the zoomed level (`--zoom-small 12`): four times the
                 // full-size level's compute.
                 let d = CenterNetConfig::default;

@@ -1,4 +1,4 @@
-//! [`CenterNetDetector`]: the learned detector run through tract, as a roadtrack
+//! [`CenterNetDetector`]: the learned detector (roadtrack's kernels or tract), as a roadtrack
 //! [`Detector`] and as a dense score map for the filters' likelihood.
 
 use std::collections::HashMap;
@@ -9,7 +9,7 @@ use image::RgbImage;
 use serde::{Deserialize, Serialize};
 use tract_onnx::prelude::*;
 
-use super::stem::{C2, Stem};
+use super::native::{Isa, NativeNet};
 use super::{CLASSES, INPUT_MULTIPLE, KIND, STRIDE, channel_class};
 use crate::detector::decode::{Candidate, nms};
 use crate::onnx::{
@@ -223,27 +223,17 @@ pub struct HeatMaps {
     pub boxes: Vec<f32>,
 }
 
-/// A network cut in two: [`Stem`] and the ONNX of the rest ([`super::onnx_tail_model`]).
-struct Split {
-    stem: Stem,
-    tail: tract_onnx::pb::ModelProto,
-}
-
-/// The split of the model `proto` (at `path`): when it is the graph `roadtrack train
-/// --detector` writes ([`super::onnx_model`]) with the widths the stem's kernels are built
-/// for. `None` otherwise.
-// Choice: only a graph equal node for node to the one roadtrack writes is cut, so a model
-// edited by hand still runs as it is written, whole in tract.
-fn split_of(proto: &tract_onnx::pb::ModelProto, path: &Path) -> Option<Split> {
+/// The network of the model `proto` (at `path`) packed for roadtrack's kernels, when it is
+/// the graph `roadtrack train --detector` writes ([`super::onnx_model`]); `None` otherwise.
+// Choice: only a graph equal node for node to the one roadtrack writes runs in the native
+// kernels, so a model edited by hand still runs as it is written, whole in tract.
+fn native_of(proto: &tract_onnx::pb::ModelProto, path: &Path) -> Option<NativeNet> {
     let net = super::weights_of(proto, path).ok()?;
     let ours = super::onnx_model(&net).ok()?;
     if ours.graph.as_ref()?.node != proto.graph.as_ref()?.node {
         return None;
     }
-    Some(Split {
-        stem: Stem::new(&net)?,
-        tail: super::onnx_tail_model(&net).ok()?,
-    })
+    NativeNet::new(&net)
 }
 
 /// The learned centre-point detector (module docs of [`super`]).
@@ -253,9 +243,8 @@ pub struct CenterNetDetector {
     prep: Preprocessing,
     config: CenterNetConfig,
     plans: Mutex<HashMap<(usize, usize), Arc<TypedRunnableModel>>>,
-    /// The network cut after `conv3`: its stem in roadtrack's kernels, the rest in tract
-    /// (`None`: the whole network in tract).
-    split: Option<Split>,
+    /// The network in roadtrack's kernels (`None`: in tract).
+    native: Option<NativeNet>,
     /// With the zoom: the camera, to enlarge only the rows where objects are small.
     zoom_calibration: Option<Calibration>,
 }
@@ -290,14 +279,14 @@ impl CenterNetDetector {
         }
         let prep = preprocessing_from_metadata(&proto);
         prep.validate()?;
-        let split = split_of(&proto, path);
+        let native = native_of(&proto, path);
         let det = Self {
             path: path.to_path_buf(),
             proto,
             prep,
             config: config.clone(),
             plans: Mutex::new(HashMap::new()),
-            split,
+            native,
             zoom_calibration: None,
         };
         // Fail now on a model tract cannot run or with other outputs.
@@ -318,19 +307,18 @@ impl CenterNetDetector {
         Ok(det)
     }
 
-    /// The same detector with the whole network run by tract, its stem too (for
-    /// comparisons: `roadtrack bench` and the tests).
+    /// The same detector with the network run by tract (for comparisons: `roadtrack bench`
+    /// and the tests).
     #[must_use]
     pub fn whole_in_tract(mut self) -> Self {
-        self.split = None;
+        self.native = None;
         self.plans = Mutex::new(HashMap::new());
         self
     }
 
-    /// Whether the network's stem runs in roadtrack's kernels ([`Stem`]) and the rest in
-    /// tract; `false`: the whole network in tract.
-    pub fn is_split(&self) -> bool {
-        self.split.is_some()
+    /// Whether the network runs in roadtrack's kernels ([`NativeNet`]); `false`: in tract.
+    pub fn is_native(&self) -> bool {
+        self.native.is_some()
     }
 
     /// The model file.
@@ -360,14 +348,64 @@ impl CenterNetDetector {
         if let Some(p) = plans.get(&(h, w)) {
             return Ok(Arc::clone(p));
         }
-        let loaded = match &self.split {
-            Some(split) => tract_load(&split.tail, [1, C2, h / 4, w / 4]),
-            None => tract_load(&self.proto, [1, 3, h, w]),
-        };
+        let loaded = tract_load(&self.proto, [1, 3, h, w]);
         let plan =
             loaded.map_err(|e| model_error(&self.path, format!("tract cannot load it: {e:#}")))?;
         plans.insert((h, w), Arc::clone(&plan));
         Ok(plan)
+    }
+
+    /// One of the native network's outputs (`c` channels on an `h × w` input) as tract's
+    /// `1 × c × h/4 × w/4` array.
+    fn array(
+        &self,
+        c: usize,
+        h: usize,
+        w: usize,
+        v: Vec<f32>,
+    ) -> Result<tract_ndarray::ArrayD<f32>> {
+        tract_ndarray::ArrayD::from_shape_vec(
+            tract_ndarray::IxDyn(&[1, c, h / STRIDE, w / STRIDE]),
+            v,
+        )
+        .map_err(|e| model_error(&self.path, format!("native output: {e}")))
+    }
+
+    /// The preprocessed `image` padded to `ph × pw` (as [`CenterNetDetector::input`]),
+    /// mirrored left–right (`flip.0`) and/or upside down (`flip.1`) as [`flip_input`] mirrors
+    /// it, into the interior of the channels-last `(ph + 2) × (pw + 2) × 3` buffer `out`;
+    /// every interior value is written (padding 0).
+    fn fill_channels_last(
+        &self,
+        image: &RgbImage,
+        (ph, pw): (usize, usize),
+        (fx, fy): (bool, bool),
+        out: &mut [f32],
+    ) {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let p = &self.prep;
+        let gain: [f32; 3] = std::array::from_fn(|c| p.input_scale / p.std[c]);
+        let offset: [f32; 3] = std::array::from_fn(|c| -p.mean[c] / p.std[c]);
+        let raw = image.as_raw();
+        for r in 0..ph {
+            let dst = &mut out[((r + 1) * (pw + 2) + 1) * 3..][..pw * 3];
+            let y = if fy { ph - 1 - r } else { r };
+            if y >= h {
+                dst.fill(0.0);
+                continue;
+            }
+            let src = &raw[y * w * 3..][..w * 3];
+            for (c, px) in dst.chunks_exact_mut(3).enumerate() {
+                let x = if fx { pw - 1 - c } else { c };
+                if x >= w {
+                    px.fill(0.0);
+                    continue;
+                }
+                for k in 0..3 {
+                    px[k] = gain[k] * f32::from(src[x * 3 + k]) + offset[k];
+                }
+            }
+        }
     }
 
     /// Runs the network on a preprocessed `3 × h × w` input (`h`, `w` multiples of 16).
@@ -377,22 +415,15 @@ impl CenterNetDetector {
         h: usize,
         w: usize,
     ) -> Result<(tract_ndarray::ArrayD<f32>, tract_ndarray::ArrayD<f32>)> {
-        let plan = self.plan(h, w)?;
-        let t = match &self.split {
-            Some(split) => Tensor::zero::<f32>(&[1, C2, h / 4, w / 4]).and_then(|mut t| {
-                let mut view = t.to_plain_array_view_mut::<f32>()?;
-                let r3 = view.as_slice_mut().ok_or_else(|| {
-                    tract_onnx::tract_core::internal::format_err!(
-                        "a new tensor that is not contiguous"
-                    )
-                })?;
-                split.stem.run_into(&input, h, w, true, r3);
-                drop(view);
-                Ok(t)
-            }),
-            None => Tensor::from_shape(&[1, 3, h, w], &input),
+        if let Some(native) = &self.native {
+            let (heat, boxes) = native.run(&input, h, w, Isa::best());
+            return Ok((
+                self.array(CLASSES, h, w, heat)?,
+                self.array(4, h, w, boxes)?,
+            ));
         }
-        .map_err(|e| self.run_error(e))?;
+        let plan = self.plan(h, w)?;
+        let t = Tensor::from_shape(&[1, 3, h, w], &input).map_err(|e| self.run_error(e))?;
         let out = plan.run(tvec![t.into()]).map_err(|e| self.run_error(e))?;
         if out.len() != 2 {
             return Err(model_error(
@@ -426,7 +457,7 @@ impl CenterNetDetector {
             )));
         }
         let (a, b) = self.run_padded(input, h, w)?;
-        Ok((a.iter().copied().collect(), b.iter().copied().collect()))
+        Ok((flat(&a).into_owned(), flat(&b).into_owned()))
     }
 
     /// The preprocessed, padded input of `image`: `(values, padded h, padded w)`. Padding
@@ -454,7 +485,9 @@ impl CenterNetDetector {
     /// # Errors
     /// The model fails to run.
     pub fn heat_maps(&self, image: &RgbImage) -> Result<HeatMaps> {
-        let (input, ph, pw) = self.input(image);
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let ph = h.div_ceil(INPUT_MULTIPLE).max(1) * INPUT_MULTIPLE;
+        let pw = w.div_ceil(INPUT_MULTIPLE).max(1) * INPUT_MULTIPLE;
         let mut flips = Vec::new();
         if self.config.flip {
             flips.push((true, false));
@@ -465,16 +498,39 @@ impl CenterNetDetector {
                 flips.push((true, true));
             }
         }
-        let flipped: Vec<Vec<f32>> = flips
-            .iter()
-            .map(|&(x, y)| flip_input(&input, ph, pw, x, y))
-            .collect();
-        let (mut heat, mut boxes) = self.run_padded(input, ph, pw)?;
+        // The network's outputs on the frame as it is, then on each mirrored view.
+        let mut outs = Vec::with_capacity(flips.len() + 1);
+        if let Some(native) = &self.native {
+            // The native network reads its channels-last input straight from the image,
+            // mirrored as each view asks: no planar copy, no mirrored copy.
+            for (x, y) in std::iter::once((false, false)).chain(flips.iter().copied()) {
+                let (heat, boxes) = native.run_filled(ph, pw, Isa::best(), &mut |buf| {
+                    self.fill_channels_last(image, (ph, pw), (x, y), buf);
+                });
+                outs.push((
+                    self.array(CLASSES, ph, pw, heat)?,
+                    self.array(4, ph, pw, boxes)?,
+                ));
+            }
+        } else {
+            let (input, _, _) = self.input(image);
+            let flipped: Vec<Vec<f32>> = flips
+                .iter()
+                .map(|&(x, y)| flip_input(&input, ph, pw, x, y))
+                .collect();
+            outs.push(self.run_padded(input, ph, pw)?);
+            for m in flipped {
+                outs.push(self.run_padded(m, ph, pw)?);
+            }
+        }
+        let mut outs = outs.into_iter();
+        let (mut heat, mut boxes) = outs
+            .next()
+            .ok_or_else(|| Error::Invalid("the detector ran no pass".into()))?;
         let (oh, ow) = (ph / STRIDE, pw / STRIDE);
         if !flips.is_empty() {
             let mut views = Vec::with_capacity(flips.len());
-            for (m, &(x, y)) in flipped.into_iter().zip(&flips) {
-                let (mh, mb) = self.run_padded(m, ph, pw)?;
+            for ((mh, mb), &(x, y)) in outs.zip(&flips) {
                 if heat.shape() != mh.shape()
                     || boxes.shape() != mb.shape()
                     || boxes.shape() != [1, 4, oh, ow]
@@ -503,7 +559,7 @@ impl CenterNetDetector {
                     ),
                 ));
             }
-            let flat: Vec<f32> = a.iter().copied().collect();
+            let flat = flat(a);
             let mut out = Vec::with_capacity(ch * rows * cols);
             for c in 0..ch {
                 for r in 0..rows {
@@ -760,14 +816,8 @@ fn fold_flipped<'a>(
     let n = (views.clone().count() + 1) as f32;
     // Choice: flat row-major copies, not `IxDyn` indexing per cell, which cost a tenth of a
     // flipped frame's time; the sums run in the same order, so the result is the same.
-    let flat = |a: &'a tract_ndarray::ArrayD<f32>| -> Cow<'a, [f32]> {
-        match a.as_slice() {
-            Some(s) => Cow::Borrowed(s),
-            None => Cow::Owned(a.iter().copied().collect()),
-        }
-    };
     let views: Vec<(Cow<'a, [f32]>, bool, bool)> = views.map(|(m, x, y)| (flat(m), x, y)).collect();
-    let mut folded: Vec<f32> = out.iter().copied().collect();
+    let mut folded: Vec<f32> = flat(out).into_owned();
     for k in 0..ch {
         for r in 0..rows {
             let row = (k * rows + r) * cols;
@@ -784,8 +834,19 @@ fn fold_flipped<'a>(
             }
         }
     }
-    for (o, v) in out.iter_mut().zip(folded) {
-        *o = v;
+    match out.as_slice_mut() {
+        Some(o) => o.copy_from_slice(&folded),
+        None => out.iter_mut().zip(folded).for_each(|(o, v)| *o = v),
+    }
+}
+
+/// The values of `a` in row-major order: borrowed when `a` is contiguous (a network's
+/// outputs are), copied otherwise. Iterating an `ArrayD` value by value costs several times
+/// a slice copy.
+fn flat(a: &tract_ndarray::ArrayD<f32>) -> std::borrow::Cow<'_, [f32]> {
+    match a.as_slice() {
+        Some(s) => std::borrow::Cow::Borrowed(s),
+        None => std::borrow::Cow::Owned(a.iter().copied().collect()),
     }
 }
 

@@ -1,7 +1,8 @@
 //! roadtrack's learned detector (`--detector cnn`): a small fully convolutional
 //! centre-point network (CenterNet, Zhou et al. 2019, "Objects as Points") trained by
 //! `roadtrack train --detector` on simulator renders (crate `roadtrack-learn`), stored as
-//! ONNX and run here through tract.
+//! ONNX and run here by roadtrack's own kernels ([`native`]), or through tract when the
+//! graph is not the one roadtrack writes.
 //!
 //! The network ([`CenterNetShape::layers`]) takes `N × 3 × H × W` (H, W multiples of
 //! [`INPUT_MULTIPLE`]) and returns, at stride [`STRIDE`]:
@@ -14,7 +15,7 @@
 //! ([`onnx_model`]) and the detector ([`CenterNetDetector`], in `detector.rs`).
 
 mod detector;
-pub mod stem;
+pub mod native;
 #[cfg(test)]
 mod tests;
 
@@ -54,26 +55,10 @@ pub fn is_centernet_file(path: &Path) -> bool {
 /// # Errors
 /// Weights that do not match the shape.
 pub fn onnx_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
-    model(net, false)
-}
-
-/// The network after its stem ([`stem::Stem`]): [`onnx_model`] without `conv1`–`conv3`,
-/// its input `r3` (`N × c2 × H/4 × W/4`, the stem's output).
-///
-/// # Errors
-/// Weights that do not match the shape.
-pub fn onnx_tail_model(net: &CenterNetWeights) -> Result<pb::ModelProto> {
-    model(net, true)
-}
-
-/// [`onnx_model`], or with `tail` [`onnx_tail_model`].
-fn model(net: &CenterNetWeights, tail: bool) -> Result<pb::ModelProto> {
     net.validate()?;
     let specs = net.shape.layers();
-    // The stem's layers, left out of the tail.
-    let first = if tail { 3 } else { 0 };
     let mut initializer = Vec::new();
-    for (s, l) in specs.iter().zip(&net.layers).skip(first) {
+    for (s, l) in specs.iter().zip(&net.layers) {
         initializer.push(float_tensor(
             &format!("{}.w", s.name),
             &s.weight_dims(),
@@ -113,8 +98,8 @@ fn model(net: &CenterNetWeights, tail: bool) -> Result<pb::ModelProto> {
     };
     let relu = |input: &str, output: &str| node("Relu", &[input], output, vec![]);
     let mut nodes = Vec::new();
-    let mut prev = if tail { "r3" } else { "input" }.to_string();
-    for i in first + 1..=7 {
+    let mut prev = "input".to_string();
+    for i in 1..=7 {
         let name = format!("conv{i}");
         nodes.push(layer(&name, &prev, &format!("c{i}")));
         nodes.push(relu(&format!("c{i}"), &format!("r{i}")));
@@ -149,15 +134,11 @@ fn model(net: &CenterNetWeights, tail: bool) -> Result<pb::ModelProto> {
             node: nodes,
             name: "roadtrack_centernet".into(),
             initializer,
-            input: vec![if tail {
-                value_info(
-                    "r3",
-                    &[None, Some(net.shape.c2 as i64), None, None],
-                    &["N", "H4", "W4"],
-                )
-            } else {
-                value_info("input", &[None, Some(3), None, None], &["N", "H", "W"])
-            }],
+            input: vec![value_info(
+                "input",
+                &[None, Some(3), None, None],
+                &["N", "H", "W"],
+            )],
             output: vec![
                 value_info("heatmap", &out_dims(CLASSES as i64), &["N", "H4", "W4"]),
                 value_info("boxes", &out_dims(4), &["N", "H4", "W4"]),
