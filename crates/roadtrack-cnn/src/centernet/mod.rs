@@ -17,12 +17,18 @@
 mod detector;
 pub mod native;
 #[cfg(test)]
+mod native_tests;
+#[cfg(test)]
 mod tests;
+mod views;
 
 pub use detector::{
-    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_CAR_LENGTH_M,
-    ZOOM_OVERLAP_IOU, add_zoomed, average_flipped, decode_peaks, default_model_path, drop_nested,
-    flip_input, merge_levels, score_map_of, shrink, zoom_rows,
+    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU,
+    default_model_path,
+};
+pub use views::{
+    ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, flip_input,
+    merge_levels, score_map_of, shrink, zoom_rows,
 };
 
 use std::path::Path;
