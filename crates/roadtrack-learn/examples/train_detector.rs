@@ -4,7 +4,8 @@
 //!     cargo run --release -p roadtrack-learn --example train_detector -- STEPS SEED OUT.json [LOG.csv]
 //!
 //! Environment: `INIT=W.json` starts from those weights, `SIM_SEED_BASE=N` renders episodes
-//! from simulator seed N (default 1000), `LEARNING_RATE=X` sets the peak rate, `BOX_WEIGHT=X` the box loss's weight, `CLIP_TO_CROP=1` boxes clipped to the crop, `EDGE_CROP_SHARE=X` that share of crops cutting an object (a second
+//! from simulator seed N (default 1000), `LEARNING_RATE=X` sets the peak rate, `BOX_WEIGHT=X` the box loss's weight, `CLIP_TO_CROP=1` boxes clipped to the crop, `EDGE_CROP_SHARE=X` that share of crops cutting an object,
+//! `BOX_CLASS_WEIGHTS=a,b,c,d` the box loss's weight per class (a second
 //! stage of a recipe; `roadtrack train --detector --init --sim-seed-base --learning-rate`).
 
 use std::io::Write as _;
@@ -36,6 +37,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Ok(v) = std::env::var("EDGE_CROP_SHARE") {
         cfg.data.edge_crop_share = v.parse()?;
+    }
+    if let Ok(v) = std::env::var("BOX_CLASS_WEIGHTS") {
+        let w: Vec<f32> = v.split(',').map(str::parse).collect::<Result<_, _>>()?;
+        if w.len() != cfg.data.box_class_weights.len() {
+            return Err(format!("BOX_CLASS_WEIGHTS: four weights, got {v}").into());
+        }
+        cfg.data.box_class_weights.copy_from_slice(&w);
     }
     if let Ok(v) = std::env::var("BOX_WEIGHT") {
         cfg.box_weight = v.parse()?;

@@ -342,6 +342,13 @@ fn bad_crop_scales_are_refused_by_name() {
             },
             "edge_crop_min_px",
         ),
+        (
+            DataConfig {
+                box_class_weights: [1.0, -1.0, 1.0, 1.0],
+                ..DataConfig::default()
+            },
+            "box_class_weights",
+        ),
     ] {
         let cfg = TrainConfig {
             data,
@@ -349,6 +356,62 @@ fn bad_crop_scales_are_refused_by_name() {
         };
         let err = cfg.validate().unwrap_err().to_string();
         assert!(err.contains(field), "{field}: {err}");
+    }
+}
+
+#[test]
+fn each_class_box_targets_carry_its_weight() {
+    use crate::data::{Object, TrainFrame, make_sample};
+    use rand::SeedableRng;
+    // A car (channel 0) and a lorry (channel 1) side by side in the middle of the frame:
+    // every crop that holds a centre weighs its four box targets by the class's weight.
+    let frame = TrainFrame {
+        image: image::RgbImage::from_pixel(640, 480, image::Rgb([90, 90, 90])),
+        objects: vec![
+            Object {
+                bbox: roadtrack::geometry::BBox::new(300.0, 230.0, 16.0, 8.0),
+                channel: 0,
+                visibility: 1.0,
+            },
+            Object {
+                bbox: roadtrack::geometry::BBox::new(330.0, 230.0, 30.0, 10.0),
+                channel: 1,
+                visibility: 1.0,
+            },
+        ],
+    };
+    let prep = crate::train::training_preprocessing();
+    let masks = |weights: [f32; 4]| -> Vec<(usize, f32)> {
+        let data = DataConfig {
+            box_class_weights: weights,
+            ..DataConfig::default()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let plane = (data.crop / 4) * (data.crop / 4);
+        let mut out = Vec::new();
+        for _ in 0..40 {
+            let s = make_sample(&frame, &mut rng, &data, &prep);
+            for i in 0..plane {
+                if s.reg_mask[i] > 0.0 {
+                    let class = (0..4).find(|&k| s.pos[k * plane + i] > 0.0).unwrap();
+                    // The same weight on all four targets (size and offset).
+                    for j in 1..4 {
+                        assert_eq!(s.reg_mask[j * plane + i], s.reg_mask[i]);
+                    }
+                    out.push((class, s.reg_mask[i]));
+                }
+            }
+        }
+        out
+    };
+    let plain = masks([1.0; 4]);
+    assert!(plain.iter().any(|m| m.0 == 0) && plain.iter().any(|m| m.0 == 1));
+    assert!(plain.iter().all(|m| m.1 == 1.0));
+    let weighted = masks([1.0, 3.0, 2.0, 0.5]);
+    // Same crops (same seed): the same cells, each with its class's weight.
+    assert_eq!(weighted.len(), plain.len());
+    for (class, w) in weighted {
+        assert_eq!(w, [1.0, 3.0, 2.0, 0.5][class]);
     }
 }
 

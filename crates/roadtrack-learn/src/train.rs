@@ -104,6 +104,15 @@ impl TrainConfig {
             return bad("width/height", "must be 32–4096 px".into());
         }
         let d = &self.data;
+        if d.box_class_weights
+            .iter()
+            .any(|w| !(w.is_finite() && (0.0..=100.0).contains(w)))
+        {
+            return bad(
+                "box_class_weights",
+                format!("each must be in [0, 100], got {:?}", d.box_class_weights),
+            );
+        }
         if !(d.scale_range.0 > 0.0 && d.scale_range.0 < d.scale_range.1) {
             return bad(
                 "scale_range",

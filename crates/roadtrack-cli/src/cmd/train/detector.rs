@@ -56,6 +56,10 @@ pub struct DetectorTrainArgs {
     /// [default: 0].
     #[arg(long, value_name = "SHARE", requires = "clip_to_crop")]
     pub edge_crops: Option<f64>,
+    /// --detector: weight of each class's box targets in the box loss, four numbers for
+    /// car, bus/truck, bicycle/motorcycle and pedestrian [default: 1,1,1,1].
+    #[arg(long, value_name = "W,W,W,W", value_delimiter = ',')]
+    pub box_class_weights: Option<Vec<f32>>,
     /// --detector: write every step's losses to this CSV (step, learning_rate, heat, boxes,
     /// total).
     #[arg(long, value_name = "F.csv")]
@@ -78,6 +82,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--sim-seed-base", a.sim_seed_base.is_some()),
             ("--clip-to-crop", a.clip_to_crop),
             ("--edge-crops", a.edge_crops.is_some()),
+            ("--box-class-weights", a.box_class_weights.is_some()),
         ],
         "only with --detector",
     )
@@ -185,6 +190,16 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     if let Some(v) = d.edge_crops {
         config.data.edge_crop_share = v;
     }
+    if let Some(v) = &d.box_class_weights {
+        if v.len() != config.data.box_class_weights.len() {
+            anyhow::bail!(
+                "--box-class-weights: four weights (car, bus/truck, bicycle/motorcycle, \
+                 pedestrian), got {}",
+                v.len()
+            );
+        }
+        config.data.box_class_weights.copy_from_slice(v);
+    }
     if let Some(v) = args.batch_size {
         config.batch = v;
     }
@@ -201,6 +216,11 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
                 d.edge_crops.is_some(),
             ),
             ("init", "--init", d.init.is_some()),
+            (
+                "box_class_weights",
+                "--box-class-weights",
+                d.box_class_weights.is_some(),
+            ),
             ("batch", "--batch-size", args.batch_size.is_some()),
             (
                 "learning_rate",
