@@ -94,8 +94,12 @@ pub struct TruthRow {
     pub height_m: f64,
     /// Paint (vehicles) or top (pedestrians) colour before shading, 8-bit RGB.
     pub colour_rgb: [u8; 3],
-    /// Fraction of the object's silhouette pixels not covered by nearer objects.
+    /// Fraction of the object's silhouette pixels inside the image not covered by nearer
+    /// objects (what `truth.csv` writes; the frame's edge does not count).
     pub visibility: f64,
+    /// Share of the object's projected outline inside the image (1 unless the frame's
+    /// edge cuts it). `gt.txt` writes `visibility × in_frame`, MOT17's visibility.
+    pub in_frame: f64,
     /// Box of the projected object, clipped to the image, px.
     pub bbox: BBox,
     /// Mean colour of the object's visible pixels in the frame (0 when none are visible).
@@ -374,6 +378,7 @@ impl Simulation {
                 height_m: a.height_m,
                 colour_rgb: a.colour,
                 visibility: px.visibility(),
+                in_frame: px.in_frame,
                 bbox,
                 visible_rgb: px.mean_rgb,
             });

@@ -6,6 +6,7 @@
 //!                           640×480 frame is ~60 KB as JPEG vs ~900 KB as PNG)
 //!   seqinfo.ini             frameRate, seqLength, imWidth, imHeight, imExt
 //!   gt/gt.txt               frame,id,left,top,width,height,1,MOT17 class,visibility
+//!                           (MOT17's: the border's cropping hides, `TruthRow::in_frame`)
 //!   det/det.txt             MOTChallenge public detections (id −1)
 //!   det/detections.csv      the same detections with mean colour and class
 //!   truth.csv               one row per object per frame (columns below)
@@ -61,7 +62,11 @@ pub fn gt_rows(truth: &[TruthRow]) -> Vec<MotGtRow> {
             bbox: t.bbox,
             consider: true,
             class: t.class.mot17_id(),
-            visibility: t.visibility,
+            // Choice: MOT17's visibility, which counts an object's part cut off by the
+            // image border as hidden ("due to occlusion and due to image border
+            // cropping"): a car 4 px of which show at the edge is not a fully visible car.
+            // Before 2026-11-27 the frame's edge did not count (truth.csv still gives that).
+            visibility: t.visibility * t.in_frame,
         })
         .collect()
 }

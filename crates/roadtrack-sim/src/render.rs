@@ -31,6 +31,10 @@ pub struct ObjectPixels {
     pub visible_px: u32,
     /// Mean colour of the visible pixels in the final (noisy) frame, 8-bit RGB.
     pub mean_rgb: [f64; 3],
+    /// Share of the object's projected outline (the convex hull of its projected corners)
+    /// inside the image: 1 in the middle of the frame, under 1 where the frame's edge cuts
+    /// it. MOT17's visibility counts such cropping as hidden ([`crate::gt_rows`]).
+    pub in_frame: f64,
 }
 
 impl ObjectPixels {
@@ -632,9 +636,11 @@ impl SceneRenderer {
                 f64::NEG_INFINITY,
             );
             let tag = idx as u32;
+            let mut outline: Vec<[f64; 2]> = Vec::new();
             for f in faces {
                 let poly = camera.project_polygon(&f.points);
                 for p in &poly {
+                    outline.push([p.0, p.1]);
                     u0 = u0.min(p.0);
                     u1 = u1.max(p.0);
                     v0 = v0.min(p.1);
@@ -675,6 +681,7 @@ impl SceneRenderer {
                 own_px: own,
                 visible_px: 0,
                 mean_rgb: [0.0; 3],
+                in_frame: share_in_frame(outline, w as f64, h as f64),
             });
         }
         self.expose(&mut img, frame, time_s);
@@ -736,6 +743,67 @@ impl SceneRenderer {
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise.
+/// Share of the convex hull of `pts` inside `[0, w] × [0, h]`, by area; 1 for a hull of no
+/// area (a point or a line: nothing to cut).
+// Choice: the hull of the projected corners, not the drawn pixels: the pixels outside the
+// image are never drawn, and a vehicle's or a walker's outline is close to its hull.
+fn share_in_frame(pts: Vec<[f64; 2]>, w: f64, h: f64) -> f64 {
+    let hull = convex_hull(pts);
+    let whole = polygon_area(&hull);
+    if whole <= 0.0 {
+        return 1.0;
+    }
+    (polygon_area(&clip_to_rect(&hull, w, h)) / whole).clamp(0.0, 1.0)
+}
+
+/// Shoelace area (absolute) of a simple polygon.
+fn polygon_area(p: &[[f64; 2]]) -> f64 {
+    let n = p.len();
+    if n < 3 {
+        return 0.0;
+    }
+    let twice: f64 = (0..n)
+        .map(|i| {
+            let (a, b) = (p[i], p[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum();
+    twice.abs() / 2.0
+}
+
+/// Sutherland–Hodgman: the convex polygon `poly` clipped to `[0, w] × [0, h]`.
+fn clip_to_rect(poly: &[[f64; 2]], w: f64, h: f64) -> Vec<[f64; 2]> {
+    // Each edge as (axis, bound, keep where coordinate ≥ bound?).
+    let edges = [(0, 0.0, true), (0, w, false), (1, 0.0, true), (1, h, false)];
+    let mut out = poly.to_vec();
+    for (axis, bound, above) in edges {
+        let inside = |p: &[f64; 2]| {
+            if above {
+                p[axis] >= bound
+            } else {
+                p[axis] <= bound
+            }
+        };
+        let input = std::mem::take(&mut out);
+        let n = input.len();
+        for i in 0..n {
+            let (a, b) = (input[i], input[(i + 1) % n]);
+            let (ia, ib) = (inside(&a), inside(&b));
+            if ia {
+                out.push(a);
+            }
+            if ia != ib {
+                let t = (bound - a[axis]) / (b[axis] - a[axis]);
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+        if out.is_empty() {
+            break;
+        }
+    }
+    out
+}
+
 fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
     pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     pts.dedup();
@@ -839,6 +907,51 @@ mod tests {
         let b = stats[0].bbox.expect("in view");
         let (u, v) = cam.project([3.0, -1.75, 0.0]).expect("in view");
         assert!((b.centre().x - u).abs() < 1e-6 && (b.centre().y - v).abs() < 1e-6);
+    }
+
+    #[test]
+    fn share_in_frame_matches_a_grid_count() {
+        // Hulls of random points around a 100 × 80 frame, against counting a 0.25 px grid.
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..20 {
+            let pts: Vec<[f64; 2]> = (0..6)
+                .map(|_| [next() * 200.0 - 50.0, next() * 160.0 - 40.0])
+                .collect();
+            let hull = convex_hull(pts.clone());
+            let inside_hull = |x: f64, y: f64| {
+                (0..hull.len()).all(|i| {
+                    let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+                    (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]) >= 0.0
+                })
+            };
+            let (mut all, mut kept) = (0u32, 0u32);
+            for i in 0..800 {
+                for j in 0..640 {
+                    let (x, y) = (
+                        -50.0 + (f64::from(i) + 0.5) * 0.25,
+                        -40.0 + (f64::from(j) + 0.5) * 0.25,
+                    );
+                    if inside_hull(x, y) {
+                        all += 1;
+                        kept += u32::from((0.0..100.0).contains(&x) && (0.0..80.0).contains(&y));
+                    }
+                }
+            }
+            let want = f64::from(kept) / f64::from(all);
+            let got = share_in_frame(pts, 100.0, 80.0);
+            assert!((got - want).abs() < 0.01, "{got} against {want}");
+        }
+        // Inside, outside, half.
+        let sq = |x0: f64| vec![[x0, 10.0], [x0 + 20.0, 10.0], [x0 + 20.0, 30.0], [x0, 30.0]];
+        assert_eq!(share_in_frame(sq(40.0), 100.0, 80.0), 1.0);
+        assert_eq!(share_in_frame(sq(200.0), 100.0, 80.0), 0.0);
+        assert!((share_in_frame(sq(-10.0), 100.0, 80.0) - 0.5).abs() < 1e-12);
     }
 
     #[test]

@@ -233,6 +233,37 @@ fn crowded_crossing_has_partly_occluded_people() -> Result<()> {
 }
 
 #[test]
+fn objects_cut_by_the_frame_edge_are_partly_visible_in_gt() -> Result<()> {
+    // Vehicles drive in and out of an oblique intersection view: rows whose box touches
+    // the image border are cut, rows well inside are whole; gt.txt's visibility is
+    // truth's times the share inside the frame (MOT17's: border cropping hides).
+    let cfg = small(SceneKind::Intersection, ViewKind::Oblique, 60);
+    let run = simulate_in_memory(&cfg, 2)?;
+    let (w, h) = (f64::from(cfg.width), f64::from(cfg.height));
+    let gt = gt_rows(&run.truth);
+    let (mut cut, mut whole) = (0, 0);
+    for (t, g) in run.truth.iter().zip(&gt) {
+        assert!((0.0..=1.0).contains(&t.in_frame), "{t:?}");
+        assert_eq!(g.visibility, t.visibility * t.in_frame);
+        let b = t.bbox;
+        let margin = b
+            .left
+            .min(b.top)
+            .min(w - b.left - b.width)
+            .min(h - b.top - b.height);
+        if margin > 1.0 {
+            // The outline's hull can reach a little past the box only through rounding.
+            assert!(t.in_frame > 1.0 - 1e-9, "whole, yet {t:?}");
+            whole += 1;
+        } else if margin < 1e-6 && t.in_frame < 1.0 {
+            cut += 1;
+        }
+    }
+    assert!(whole > 20 && cut > 5, "whole {whole}, cut {cut}");
+    Ok(())
+}
+
+#[test]
 fn from_trajectories_reproduces_the_committed_positions() -> Result<()> {
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
