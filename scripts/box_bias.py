@@ -22,7 +22,8 @@ import sys
 from collections import defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from detection_compare import CLASSES, iou, read_gt, read_ours  # noqa: E402
+from detection_compare import (  # noqa: E402
+    CLASSES, add_sequence_arguments, iou, read_gt, read_ours, sequence)
 
 
 def errors(gt, dets, n_frames):
@@ -65,12 +66,7 @@ def errors(gt, dets, n_frames):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--roadtrack", default="roadtrack")
-    ap.add_argument("--frames", type=int, default=300)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--work", default="/tmp/detcmp")
-    ap.add_argument("--scenes", default="road,intersection,crossing")
-    ap.add_argument("--views", default="aerial,oblique")
+    add_sequence_arguments(ap, seed=0)
     ap.add_argument("--cnn-args", default="", help="extra flags for --detector cnn")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
@@ -79,11 +75,7 @@ def main():
     print("| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for scene in a.scenes.split(","):
         for view in a.views.split(","):
-            seq = f"{a.work}/{scene}_{view}_{a.seed}"
-            if not os.path.isdir(seq):
-                subprocess.run([a.roadtrack, "-q", "simulate", "--scene", scene, "--view", view,
-                                "--frames", str(a.frames), "--seed", str(a.seed), "-o", seq],
-                               check=True)
+            seq = sequence(a, scene, view)
             out = f"{seq}/det_cnn_bias.csv"
             subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, "--detector", "cnn",
                             "--end", str(a.frames), *a.cnn_args.split()], check=True)

@@ -221,14 +221,29 @@ def score(gt, dets, stopped, n_frames):
     return rec, (n_tp / n_det if n_det else float("nan")), tot
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def add_sequence_arguments(ap, seed):
+    """The binary and the simulated sequences: what scripts/box_bias.py takes too."""
     ap.add_argument("--roadtrack", default="roadtrack")
     ap.add_argument("--frames", type=int, default=300)
-    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=seed)
     ap.add_argument("--work", default="/tmp/detcmp")
     ap.add_argument("--scenes", default="road,intersection,crossing")
     ap.add_argument("--views", default="aerial,oblique")
+
+
+def sequence(a, scene, view):
+    """The folder of `scene`/`view` at `a.seed` under `a.work`, simulated if missing."""
+    seq = f"{a.work}/{scene}_{view}_{a.seed}"
+    if not os.path.isdir(seq):
+        subprocess.run([a.roadtrack, "-q", "simulate", "--scene", scene, "--view", view,
+                        "--frames", str(a.frames), "--seed", str(a.seed), "-o", seq],
+                       check=True)
+    return seq
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    add_sequence_arguments(ap, seed=1)
     ap.add_argument("--cnn-model", default=None)
     ap.add_argument("--cnn-args", default="",
                     help="extra flags for the learned detector, e.g. '--pyramid 1 --min-score 0.4'; "
@@ -247,11 +262,7 @@ def main():
     print("| --- | --- | --- | " + " | ".join("---:" for _ in cols) + " | ---: |")
     for scene in a.scenes.split(","):
         for view in a.views.split(","):
-            seq = f"{a.work}/{scene}_{view}_{a.seed}"
-            if not os.path.isdir(seq):
-                subprocess.run([a.roadtrack, "-q", "simulate", "--scene", scene, "--view", view,
-                                "--frames", str(a.frames), "--seed", str(a.seed), "-o", seq],
-                               check=True)
+            seq = sequence(a, scene, view)
             gt = read_gt(seq)
             stopped = read_stopped(seq)
             runs = {}

@@ -912,13 +912,9 @@ mod tests {
     #[test]
     fn share_in_frame_matches_a_grid_count() {
         // Hulls of random points around a 100 × 80 frame, against counting a 0.25 px grid.
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::RngExt as _;
+        let mut rng = rng_for(7, Stream::Render, 0);
+        let mut next = || rng.random::<f64>();
         for _ in 0..20 {
             let pts: Vec<[f64; 2]> = (0..6)
                 .map(|_| [next() * 200.0 - 50.0, next() * 160.0 - 40.0])
