@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Detection recall and precision at IoU 0.5 on the simulator's scenes (docs/EXPERIMENTS.md,
 "Detection"): roadtrack's background detector as it was (median start-up, no shadow
-suppression, hold or splitting), as it is by default, and with region splitting
-(`--calibration … --split`), and OpenCV's MOG2 + contours, on the same frames.
+suppression, hold or splitting), as it is by default, with region splitting
+(`--calibration … --split`), and with the settings for cameras that watch people
+(`--config configs/detect-pedestrians.toml --calibration …`), and OpenCV's MOG2 + contours, on the same
+frames.
 
     python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
         --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
@@ -45,6 +47,11 @@ enabled = false
 """
 
 CLASSES = {1: "ped", 3: "car", 5: "moto", 6: "lorry/bus"}
+
+# The background detector's settings for cameras that watch people (people side by side cut
+# apart; with the calibration, regions much smaller than a person there dropped).
+PEDESTRIANS_CONFIG = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "configs",
+                                  "detect-pedestrians.toml")
 
 
 def read_gt(seq):
@@ -270,6 +277,8 @@ def main():
                 ("median (old)", ["--config", old_cfg]),
                 ("default", []),
                 ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
+                ("pedestrians config", ["--config", PEDESTRIANS_CONFIG,
+                                        "--calibration", f"{seq}/calibration.toml"]),
             ]:
                 out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)

@@ -3,7 +3,7 @@
 
 use super::FrameDetections;
 use super::regions::{Region, RegionConfig, clean_mask, extract_regions_split};
-use super::split::{SplitConfig, Splitter};
+use super::split::{PersonSize, SplitConfig, Splitter};
 use crate::calibration::Calibration;
 use crate::detect::background_model::{BackgroundConfig, BackgroundModel, sample_frames};
 use crate::detection::Detection;
@@ -24,7 +24,8 @@ pub struct BackgroundDetectorConfig {
     /// side (`columns`).
     pub split: SplitConfig,
     /// The camera's ground calibration, when known (`--calibration`; not part of the TOML):
-    /// gives the expected vehicle size for [`SplitConfig`].
+    /// gives the expected vehicle size for [`SplitConfig`] and the person size for
+    /// `regions.min_person_share`.
     #[serde(skip)]
     pub calibration: Option<Box<Calibration>>,
 }
@@ -71,6 +72,8 @@ pub struct BackgroundDetector {
     model: BackgroundModel,
     /// Made on the first frame from the calibration (needs the image size).
     splitter: Option<Splitter>,
+    /// For `regions.min_person_share`, when it is set and there is a calibration.
+    person: Option<PersonSize>,
 }
 
 impl BackgroundDetector {
@@ -97,10 +100,17 @@ impl BackgroundDetector {
             (Some(cal), true) => Some(Splitter::new(config.split.clone(), (**cal).clone(), w, h)),
             _ => None,
         };
+        let person = match &config.calibration {
+            Some(cal) if config.regions.min_person_share > 0.0 => {
+                Some(PersonSize::new((**cal).clone(), w, h))
+            }
+            _ => None,
+        };
         Self {
             config,
             model,
             splitter,
+            person,
         }
     }
 
@@ -146,13 +156,17 @@ impl BackgroundDetector {
         let mask = clean_mask(&raw, &self.config.regions);
         self.model
             .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
-        let regions = extract_regions_split(
+        let mut regions = extract_regions_split(
             &mask,
             &frame.image,
             &self.config.regions,
             self.splitter.as_ref(),
             self.config.split.columns.then_some(&self.config.split),
         );
+        if let Some(person) = &self.person {
+            let share = self.config.regions.min_person_share;
+            regions.retain(|r| person_sized(person, share, r));
+        }
         Ok(Foreground { mask, regions })
     }
 
@@ -180,6 +194,18 @@ impl super::Detector for BackgroundDetector {
     fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
         self.detect_with_mask(frame)
     }
+}
+
+/// Whether region `r`'s box covers at least `share` of the box of a person standing at its
+/// foot point (`regions.min_person_share`); kept where no person size is known there.
+// Choice: the region's box, not its pixel count, is compared with the person's box: a
+// walker's mask fills a varying share of its box (legs apart or together).
+fn person_sized(person: &PersonSize, share: f64, r: &Region) -> bool {
+    let b = &r.bbox;
+    let foot = crate::geometry::Point::new(b.left + b.width / 2.0, b.top + b.height);
+    person
+        .box_area_px(foot)
+        .is_none_or(|a| b.width * b.height >= share * a)
 }
 
 #[cfg(test)]
@@ -229,6 +255,50 @@ mod tests {
                 assert_eq!(dd.size_px, Some((8.0, 8.0)));
             }
         }
+        Ok(())
+    }
+
+    /// With a calibration, `min_person_share` drops a region much smaller than a person
+    /// standing there and keeps a person-sized one; without the setting both stay.
+    #[test]
+    fn min_person_share_drops_pieces_smaller_than_a_person_there() -> Result<()> {
+        let (cal, _) = crate::detect::split::tests::pinhole();
+        let person = PersonSize::new(cal.clone(), 640, 480);
+        let foot_y = 400u32;
+        let area = person
+            .box_area_px(crate::geometry::Point::new(200.0, f64::from(foot_y)))
+            .expect("ground seen");
+        // A person's box (0.4 H × H) and a piece 0.3 H square: 0.225 of the person's box.
+        let h = (area / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
+        let (pw, ph, piece) = ((0.4 * h) as u32, h as u32, (0.3 * h) as u32);
+        let frames: Vec<Frame> = (1..=20u32)
+            .map(|i| {
+                let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
+                for (x0, w, hh) in [(100 + 3 * i, pw, ph), (400 + 3 * i, piece, piece)] {
+                    for y in foot_y - hh..foot_y {
+                        for x in x0..x0 + w {
+                            img.put_pixel(x, y, Rgb([200, 60, 40]));
+                        }
+                    }
+                }
+                Frame {
+                    index: i,
+                    time_s: f64::from(i - 1) / 10.0,
+                    image: img,
+                }
+            })
+            .collect();
+        let run = |share: f64| -> Result<Vec<usize>> {
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.min_person_share = share;
+            cfg.calibration = Some(Box::new(cal.clone()));
+            let mut det =
+                BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(20))?;
+            frames.iter().map(|f| Ok(det.detect(f)?.len())).collect()
+        };
+        assert!(run(0.0)?.iter().all(|&n| n == 2), "both kept when off");
+        let on = run(0.25)?;
+        assert!(on.iter().all(|&n| n == 1), "only the person kept: {on:?}");
         Ok(())
     }
 

@@ -18,6 +18,13 @@ pub struct RegionConfig {
     pub min_area_px: u32,
     /// Largest region kept, px². Default 50 000.
     pub max_area_px: u32,
+    /// Smallest region kept as a share of the box a standing person would have at the
+    /// region's foot point (the middle of its box's bottom edge), from the calibration's
+    /// camera ([`super::split::PersonSize`]). Drops the pieces of a person (a head or legs
+    /// beside a post) and small ghosts, at any distance from the camera. Needs a calibration
+    /// that sees heights (an oblique one, `--calibration`); without one it does nothing.
+    /// Default 0 (off); `configs/detect-pedestrians.toml` sets 0.4.
+    pub min_person_share: f64,
 }
 
 impl Default for RegionConfig {
@@ -27,6 +34,7 @@ impl Default for RegionConfig {
             close_radius_px: 3,
             min_area_px: 60,
             max_area_px: 50_000,
+            min_person_share: 0.0,
         }
     }
 }
@@ -34,6 +42,13 @@ impl Default for RegionConfig {
 impl RegionConfig {
     /// Checks the ranges.
     pub fn validate(&self) -> crate::Result<()> {
+        if !(0.0..=1.0).contains(&self.min_person_share) {
+            return Err(crate::Error::config(
+                "RegionConfig",
+                "min_person_share",
+                format!("must be in [0, 1], found {}", self.min_person_share),
+            ));
+        }
         if self.min_area_px > self.max_area_px {
             return Err(crate::Error::config(
                 "RegionConfig",

@@ -210,6 +210,43 @@ impl Camera3 {
     }
 }
 
+/// A standing person's height, m ([`PersonSize`]).
+pub const PERSON_HEIGHT_M: f64 = 1.7;
+/// A standing person's box width as a share of its height ([`PersonSize`]; the column
+/// cutter takes a person as 0.3–0.45 as wide as tall).
+pub const PERSON_WIDTH_SHARE: f64 = 0.4;
+
+/// The image box a standing person would have at each foot point, from a calibration.
+#[derive(Debug, Clone)]
+pub struct PersonSize {
+    calibration: Calibration,
+    camera: Camera3,
+}
+
+impl PersonSize {
+    /// Person sizes in `width × height` images seen through `calibration`.
+    pub fn new(calibration: Calibration, width: u32, height: u32) -> Self {
+        let camera = Camera3::from_calibration(&calibration, width, height);
+        Self {
+            calibration,
+            camera,
+        }
+    }
+
+    /// Area, px², of the box of a person standing with the feet at image point `foot`:
+    /// [`PERSON_HEIGHT_M`] from the feet's image to the head's, [`PERSON_WIDTH_SHARE`] of
+    /// that wide. `None` where the ground is not seen there, and where the calibration does
+    /// not see heights (a nadir one, or no focal length fits): the head then projects onto
+    /// the feet.
+    pub fn box_area_px(&self, foot: Point) -> Option<f64> {
+        let (x, y) = self.calibration.ground_from_image(foot)?;
+        let feet = self.camera.project(x, y, 0.0)?;
+        let head = self.camera.project(x, y, PERSON_HEIGHT_M)?;
+        let h = feet.distance(head);
+        (h.is_finite() && h >= 1.0).then_some(PERSON_WIDTH_SHARE * h * h)
+    }
+}
+
 /// Decides how many vehicles a region holds and where to cut it.
 #[derive(Debug, Clone)]
 pub struct Splitter {
@@ -354,6 +391,29 @@ pub(crate) mod tests {
             m[2],
         ];
         (Calibration::from_homography(h).expect("homography"), proj)
+    }
+
+    #[test]
+    fn a_person_box_is_the_projected_person_and_unknown_from_above() -> Result<(), crate::Error> {
+        let (cal, proj) = pinhole();
+        let sizes = PersonSize::new(cal, 640, 480);
+        for (x, y) in [(0.0, 6.0), (-3.0, 12.0), (4.0, 30.0)] {
+            let (feet, head) = (proj(x, y, 0.0), proj(x, y, PERSON_HEIGHT_M));
+            let h = feet.distance(head);
+            let a = sizes.box_area_px(feet).expect("ground seen");
+            assert!(
+                (a - PERSON_WIDTH_SHARE * h * h).abs() < 1e-6 * a,
+                "({x}, {y}): {a}"
+            );
+        }
+        // Farther is smaller.
+        let near = sizes.box_area_px(proj(0.0, 6.0, 0.0));
+        assert!(near > sizes.box_area_px(proj(0.0, 30.0, 0.0)));
+        // Above the horizon (the sky) and from a nadir calibration: no person size.
+        assert_eq!(sizes.box_area_px(Point::new(320.0, 0.0)), None);
+        let nadir = PersonSize::new(Calibration::from_nadir(0.1, [0.0, 0.0], 0.0)?, 640, 480);
+        assert_eq!(nadir.box_area_px(Point::new(320.0, 240.0)), None);
+        Ok(())
     }
 
     #[test]
