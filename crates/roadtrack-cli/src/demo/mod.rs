@@ -695,6 +695,50 @@ fn to_json<T: Serialize>(value: &T) -> Result<String> {
 mod tests {
     use super::*;
 
+    /// Experiment, not a check (docs/EXPERIMENTS.md "Demo"): the turning-movement error of
+    /// each method's demo tracks under `[stitch] max_overlap_s` values. `DEMO_DIRS` names
+    /// demo output folders (`roadtrack demo --seed S --no-video -o D`); run with
+    /// `DEMO_DIRS=D0,D1,D2 cargo test -p roadtrack-cli --bin roadtrack
+    /// turning_error_by_stitch_overlap -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "experiment over demo folders named by DEMO_DIRS"]
+    fn turning_error_by_stitch_overlap() -> Result<()> {
+        let dirs = std::env::var("DEMO_DIRS").unwrap_or_default();
+        for dir in dirs.split(',').filter(|d| !d.is_empty()).map(Path::new) {
+            let seq = dir.join("sequence");
+            let calibration = Calibration::load(&seq.join("calibration.toml"))?;
+            let mut truth = io::read_truth_points(&seq, DEFAULT_FPS)?;
+            analysis::ground::attach_calibration(&mut truth, &calibration, None, 0.5)?;
+            let truth = analysis::analyze(&truth, &intersection_site())?;
+            for m in methods() {
+                let points = roadtrack::io::trajectories::read_trajectories(
+                    &dir.join(m.name()).join("trajectories.csv"),
+                )?;
+                let mut row = format!("{} {:<10}", dir.display(), m.name());
+                for overlap in [0.0, 0.5, 1.0, 2.0, 3.0, 5.0] {
+                    let mut site = intersection_site();
+                    site.stitch.max_overlap_s = overlap;
+                    let a = analysis::analyze(&points, &site)?;
+                    let err = report::movement_error(&a, &truth).unwrap_or(f64::NAN);
+                    let (c, t) = (report::line_counts(&a), report::line_counts(&truth));
+                    let off: u64 = t
+                        .iter()
+                        .map(|(k, n)| n.abs_diff(*c.get(k).unwrap_or(&0)))
+                        .sum();
+                    let lines = off as f64 / t.values().sum::<u64>().max(1) as f64;
+                    row += &format!(
+                        " | {overlap}: {} {:.0} % (lines {:.0} %)",
+                        report::trips(&a),
+                        100.0 * err,
+                        100.0 * lines
+                    );
+                }
+                println!("{row}");
+            }
+        }
+        Ok(())
+    }
+
     /// The built-in relaxation settings are the intersection file's, not the paper's.
     #[test]
     fn demo_relaxation_reads_the_intersection_config() -> Result<()> {

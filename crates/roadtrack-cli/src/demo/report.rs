@@ -84,7 +84,7 @@ pub fn movement_error(a: &Analysis, truth: &Analysis) -> Option<f64> {
 }
 
 /// Line crossings per (line, direction), all classes.
-fn line_counts(a: &Analysis) -> BTreeMap<(String, String), u64> {
+pub fn line_counts(a: &Analysis) -> BTreeMap<(String, String), u64> {
     let mut m = BTreeMap::new();
     for c in &a.counts {
         *m.entry((c.line.clone(), c.direction.clone())).or_default() += c.count;
