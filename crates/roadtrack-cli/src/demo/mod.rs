@@ -5,6 +5,7 @@
 //! counts and turning movements beside the truth's.
 
 mod report;
+mod shared_frames;
 
 use crate::common::DetectorArgs;
 use crate::overlay::OverlaySink;
@@ -22,7 +23,7 @@ use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::replay::ReplayTracker;
 use roadtrack::track::smooth::{SmoothConfig, SmoothStage};
-use roadtrack::track::{Method, MethodConfig, Pipeline, track_source};
+use roadtrack::track::{Method, MethodConfig, Pipeline, track_frames};
 use roadtrack::track_point::TrackPoint;
 use roadtrack_sim::config::IntersectionSignalConfig;
 use roadtrack_sim::{IntersectionConfig, SceneKind, SimConfig, ViewKind};
@@ -484,44 +485,33 @@ fn replay(
     }
 }
 
-/// Runs every method (two or more at a time where the machine has the cores), in the
-/// papers' order whatever order they finish in.
-// Choice: the methods are independent, each with its own seed and its own pass over the
-// frames, so running them side by side changes no output; it is what keeps the whole-cycle
-// demo near a minute on two cores (docs/PERFORMANCE.md "Demo").
+/// Runs every method, all four at once, each on its own thread, fed the frames by one
+/// reader; the results in the papers' order whatever order they finish in.
+// Choice: the methods are independent, each with its own seed, and each sees every frame
+// in order, so running them side by side changes no output. All four at once, whatever the
+// cores, so that the frames are decoded once for all of them (shared_frames): decoding was
+// a third to a half of each method's CPU (docs/PERFORMANCE.md "Demo").
 fn run_methods(sh: &Shared<'_>, step: &mut dyn FnMut(&str)) -> Result<Vec<Ran>> {
     let all = methods();
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .clamp(1, all.len());
     step(&format!(
-        "tracking with {} ({workers} at a time)",
+        "tracking with {}, side by side",
         all.map(|m| m.name()).join(", ")
     ));
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut done: Vec<(usize, Result<Ran>)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(&method) = all.get(k) else {
-                            break;
-                        };
-                        out.push((k, run_method(sh, method)));
-                    }
-                    out
-                })
-            })
+    let frames = source::open(sh.seq, &SourceOptions::default())?;
+    let (senders, receivers) = shared_frames::channels(all.len());
+    let done: Vec<Result<Ran>> = std::thread::scope(|scope| {
+        scope.spawn(move || shared_frames::broadcast(frames, senders));
+        let handles: Vec<_> = all
+            .iter()
+            .zip(receivers)
+            .map(|(&method, frames)| scope.spawn(move || run_method(sh, method, frames)))
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
-    done.sort_by_key(|d| d.0);
-    done.into_iter().map(|d| d.1).collect()
+    done.into_iter().collect()
 }
 
 /// A method's run and its points.
@@ -529,7 +519,11 @@ type Ran = (MethodRun, Vec<TrackPoint>);
 
 /// Tracks with `method`, scores, plots and analyses its tracks, and draws its still (the
 /// middle frame with the trails up to it); the run and its points.
-fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
+fn run_method(
+    sh: &Shared<'_>,
+    method: Method,
+    frames: std::sync::mpsc::Receiver<roadtrack::Result<roadtrack::Frame>>,
+) -> Result<Ran> {
     let cfg = sh.cfg;
     let name = method.name();
     let mdir = sh.dir.join(name);
@@ -564,11 +558,12 @@ fn run_method(sh: &Shared<'_>, method: Method) -> Result<Ran> {
     };
     let t0 = std::time::Instant::now();
     let mut points: Vec<TrackPoint> = Vec::new();
-    track_source(
+    track_frames(
         sh.seq,
         &SourceOptions::default(),
         config,
         detector,
+        frames,
         vec![
             Box::new(LifecycleStage::new(LifecycleConfig::default())?),
             Box::new(SmoothStage::new(SmoothConfig::recommended())?),

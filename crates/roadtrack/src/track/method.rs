@@ -349,9 +349,32 @@ pub fn track_source<'a>(
     sinks: Vec<Box<dyn PointSink + 'a>>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<RunSummary> {
+    let frames = source::open(input, options)?;
+    track_frames(
+        input, options, method, detector, frames, stages, sinks, progress,
+    )
+}
+
+/// [`track_source`] over `frames`, given, in place of its second pass over `input`: `input`
+/// still gives the size and frame count and feeds the method's start-up passes (a
+/// background model). `frames` must be `input`'s frames under `options`; the demo decodes
+/// them once for all the methods it runs side by side.
+///
+/// # Errors
+/// As [`track_source`].
+#[allow(clippy::too_many_arguments)]
+pub fn track_frames<'a>(
+    input: &Path,
+    options: &SourceOptions,
+    method: MethodConfig,
+    detector: Option<DetectorSpec>,
+    frames: impl IntoIterator<Item = Result<crate::frame::Frame>>,
+    stages: Vec<Box<dyn PointStage + 'a>>,
+    sinks: Vec<Box<dyn PointSink + 'a>>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<RunSummary> {
     let info = source::open(input, options)?.info.clone();
     let built = method.build(input, options, &info, detector)?;
-    let frames = source::open(input, options)?;
     let mut pipeline = Pipeline {
         detector: built.detector,
         tracker: built.tracker.boxed(),

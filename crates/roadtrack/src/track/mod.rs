@@ -21,7 +21,7 @@ pub mod relaxation;
 pub mod replay;
 pub mod smooth;
 
-pub use method::{Method, MethodConfig, track_source};
+pub use method::{Method, MethodConfig, track_frames, track_source};
 pub use pipeline::{Pipeline, PointSink, PointStage, RunSummary};
 
 use crate::detect::FrameDetections;
