@@ -136,7 +136,9 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
         "Simulated signalised intersection, oblique camera, {} frames at {} fps ({:.0} s; the \
          signal cycle is {:.0} s), seed {}; detections: {detector}. Ground truth in \
          `sequence/gt/gt.txt`; calibration in `sequence/calibration.toml`. Scores are \
-         class-agnostic, TrackEval definitions; methods best first (by HOTA).\n",
+         class-agnostic, TrackEval definitions; methods best first (by HOTA). The four \
+         methods run at once, sharing the cores and one decoding of the frames: a method's \
+         time is its wall time beside the others.\n",
         facts.frames,
         facts.fps,
         f64::from(facts.frames) / facts.fps,
