@@ -145,10 +145,10 @@ fn ext(config: &SimConfig) -> &'static str {
     }
 }
 
-/// Writes the sequence produced by `sim` into `out_dir` (module doc).
 /// Frames rendered ahead of their encoding (and encoded in parallel) at a time.
 const BATCH: usize = 8;
 
+/// Writes the sequence produced by `sim` into `out_dir` (module doc).
 fn write_sequence(
     mut sim: Simulation,
     seed: u64,

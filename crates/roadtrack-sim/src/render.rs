@@ -742,7 +742,6 @@ impl SceneRenderer {
     }
 }
 
-/// Convex hull (Andrew's monotone chain), counter-clockwise.
 /// Share of the convex hull of `pts` inside `[0, w] × [0, h]`, by area; 1 for a hull of no
 /// area (a point or a line: nothing to cut).
 // Choice: the hull of the projected corners, not the drawn pixels: the pixels outside the
@@ -804,6 +803,7 @@ fn clip_to_rect(poly: &[[f64; 2]], w: f64, h: f64) -> Vec<[f64; 2]> {
     out
 }
 
+/// Convex hull (Andrew's monotone chain), counter-clockwise.
 fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
     pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     pts.dedup();

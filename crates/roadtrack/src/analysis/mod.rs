@@ -847,17 +847,22 @@ mod tests {
         Ok(())
     }
 
+    /// A car driving along y = 2 at 10 m/s from x = 0: id 1 over `first`, id 2 over
+    /// `second` starting at `x2`.
+    fn car_in_two_ids(
+        first: std::ops::RangeInclusive<u32>,
+        x2: f64,
+        second: std::ops::RangeInclusive<u32>,
+    ) -> Vec<TrackPoint> {
+        let mut pts = track(1, ObjectClass::Car, (0.0, 2.0), (10.0, 0.0), first);
+        pts.extend(track(2, ObjectClass::Car, (x2, 2.0), (10.0, 0.0), second));
+        pts
+    }
+
     #[test]
     fn a_second_track_that_takes_over_an_object_is_joined_with_max_overlap() -> Result<()> {
         // One car at 10 m/s: id 1 over frames 1-60, id 2 started on it at frame 50.
-        let mut pts = track(1, ObjectClass::Car, (0.0, 2.0), (10.0, 0.0), 1..=60);
-        pts.extend(track(
-            2,
-            ObjectClass::Car,
-            (49.3, 2.0),
-            (10.0, 0.0),
-            50..=110,
-        ));
+        let pts = car_in_two_ids(1..=60, 49.3, 50..=110);
         let overlap = |s: f64| Site {
             stitch: StitchConfig {
                 max_overlap_s: s,
@@ -874,14 +879,7 @@ mod tests {
         assert!(objects[0].samples.windows(2).all(|w| w[0].0 < w[1].0));
         // Too long an overlap (1 s > 0.9 s), and a track inside another's life: not joined.
         assert_eq!(stitch(&pts, &overlap(0.9))?.len(), 2);
-        let mut inside = track(1, ObjectClass::Car, (0.0, 2.0), (10.0, 0.0), 1..=110);
-        inside.extend(track(
-            2,
-            ObjectClass::Car,
-            (49.3, 2.0),
-            (10.0, 0.0),
-            50..=60,
-        ));
+        let inside = car_in_two_ids(1..=110, 49.3, 50..=60);
         assert_eq!(stitch(&inside, &overlap(100.0))?.len(), 2);
         Ok(())
     }
@@ -889,14 +887,7 @@ mod tests {
     #[test]
     fn an_id_switch_during_a_crossing_still_counts_one_object() -> Result<()> {
         // One car, id 1 up to x = 49, then id 2 from x = 51 (0.2 s later).
-        let mut pts = track(1, ObjectClass::Car, (0.0, 2.0), (10.0, 0.0), 1..=50);
-        pts.extend(track(
-            2,
-            ObjectClass::Car,
-            (51.0, 2.0),
-            (10.0, 0.0),
-            52..=101,
-        ));
+        let pts = car_in_two_ids(1..=50, 51.0, 52..=101);
         let a = analyze(&pts, &site())?;
         assert_eq!((a.tracks, a.objects), (2, 1));
         let total: u64 = a.counts.iter().map(|c| c.count).sum();
