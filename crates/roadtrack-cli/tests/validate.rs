@@ -107,6 +107,10 @@ fn zones_with_nan_are_rejected_naming_the_file_and_the_zone() {
             "[stitch]\nmax_gap_s = nan\n",
             ["stitch.max_gap_s", "finite"],
         ),
+        (
+            "[stitch]\nmax_overlap_s = -1.0\n",
+            ["stitch.max_overlap_s", "[0, ∞)"],
+        ),
     ] {
         let zones = write(d, "zones.toml", text);
         let o = run(&[

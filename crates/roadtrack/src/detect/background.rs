@@ -302,6 +302,16 @@ mod tests {
         Ok(())
     }
 
+    #[test]
+    fn a_person_share_outside_zero_to_one_is_refused_by_name() {
+        for bad in [-0.1, 1.5, f64::NAN] {
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.min_person_share = bad;
+            let e = cfg.validate().expect_err("refused").to_string();
+            assert!(e.contains("regions.min_person_share"), "{e}");
+        }
+    }
+
     /// The per-pixel passes split the frame over the threads (large frames only): detections,
     /// masks and the learnt background are the same at 1 and 2 threads.
     #[test]
