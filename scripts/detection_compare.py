@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Detection recall and precision at IoU 0.5 on the simulator's scenes (docs/EXPERIMENTS.md,
 "Detection"): roadtrack's background detector as it was (median start-up, no shadow
-suppression, hold or splitting), as it is by default, with region splitting
+suppression, hold, ghost suppression or splitting), as it is by default, with region splitting
 (`--calibration … --split`), and with the settings for cameras that watch people
 (`--config configs/detect-pedestrians.toml --calibration …`), and OpenCV's MOG2 + contours, on the same
 frames.
@@ -41,6 +41,7 @@ OLD_CONFIG = """[background]
 startup = "median"
 shadows = false
 hold_still_s = 0.0
+ghost_edge_ratio = 0.0
 
 [split]
 enabled = false

@@ -148,12 +148,19 @@ impl BackgroundDetector {
         &self.model
     }
 
-    /// Runs on one frame and updates the background: classify, clean the mask, learn
-    /// outside the held (cleaned) foreground, then regions (split by the calibration's
+    /// Runs on one frame and updates the background: classify, clean the mask, drop and
+    /// repair ghosts ([`super::ghosts`]), learn outside the held (cleaned) foreground, then regions (split by the calibration's
     /// expected vehicle size when there is one).
     pub fn process(&mut self, frame: &Frame) -> Result<Foreground> {
         let raw = self.model.classify(frame.index, &frame.image)?;
-        let mask = clean_mask(&raw, &self.config.regions);
+        let mut mask = clean_mask(&raw, &self.config.regions);
+        super::ghosts::suppress(
+            &mut self.model,
+            &mut mask,
+            &frame.image,
+            frame.time_s,
+            self.config.regions.min_area_px,
+        );
         self.model
             .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
         let mut regions = extract_regions_split(

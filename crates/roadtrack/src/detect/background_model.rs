@@ -62,6 +62,15 @@ pub struct BackgroundConfig {
     /// foreground this long, seconds (then the foreground rate applies). Default 60; 0
     /// disables the hold.
     pub hold_still_s: f64,
+    /// Ghost suppression ([`super::ghosts`]): a region of the cleaned mask that has stood
+    /// still for `ghost_still_s` and whose outline shows in the frame with less than this
+    /// share of the edge strength it has in the background is a ghost (the background
+    /// holds an object that has left); it is dropped and the background there set to the
+    /// frame. Default 0.5; 0 disables it.
+    pub ghost_edge_ratio: f64,
+    /// How long (s) a region must have been under the cleaned mask before the ghost test
+    /// looks at it. Default 0.5.
+    pub ghost_still_s: f64,
 }
 
 /// How the initial background is made from the sampled frames.
@@ -88,6 +97,8 @@ impl Default for BackgroundConfig {
             shadows: true,
             shadow_min_ratio: 0.5,
             hold_still_s: 60.0,
+            ghost_edge_ratio: 0.5,
+            ghost_still_s: 0.5,
         }
     }
 }
@@ -146,6 +157,14 @@ impl BackgroundConfig {
                 format!("must be finite and ≥ 0, found {}", self.hold_still_s),
             ));
         }
+        unit(self.ghost_edge_ratio, "ghost_edge_ratio")?;
+        if !(self.ghost_still_s >= 0.0 && self.ghost_still_s.is_finite()) {
+            return Err(Error::config(
+                "BackgroundConfig",
+                "ghost_still_s",
+                format!("must be finite and ≥ 0, found {}", self.ghost_still_s),
+            ));
+        }
         if self.bootstrap_frames == 0 {
             return Err(Error::config(
                 "BackgroundConfig",
@@ -163,11 +182,13 @@ impl BackgroundConfig {
     }
 
     /// The same config with the detector's later additions off: median start-up, no
-    /// shadow suppression, no hold (the behaviour `--as-published` reproduces).
+    /// shadow suppression, no hold, no ghost suppression (the behaviour `--as-published`
+    /// reproduces).
     pub fn as_published(mut self) -> Self {
         self.startup = Startup::Median;
         self.shadows = false;
         self.hold_still_s = 0.0;
+        self.ghost_edge_ratio = 0.0;
         self
     }
 }
@@ -323,6 +344,31 @@ impl BackgroundModel {
             .collect();
         RgbImage::from_raw(self.width, self.height, raw)
             .unwrap_or_else(|| RgbImage::new(self.width, self.height))
+    }
+
+    /// Per pixel, the time (s) since which it has been under the detector's cleaned mask
+    /// without a break (NaN when it is not), as of the last [`BackgroundModel::update_held`].
+    pub fn held_since(&self) -> &[f32] {
+        &self.held_since
+    }
+
+    /// The mean colour, 3 values per pixel, row-major.
+    pub fn mean(&self) -> &[f32] {
+        &self.mean
+    }
+
+    /// Sets the background to `image` on the pixels of `runs` (`(y, x0, x1)`: pixels
+    /// `x0..x1` of row `y`) and forgets that they were held: the repair of a ghost.
+    pub fn absorb(&mut self, image: &RgbImage, runs: &[(u32, u32, u32)]) {
+        let w = self.width as usize;
+        let px = image.as_raw();
+        for &(y, x0, x1) in runs {
+            let (a, b) = (y as usize * w + x0 as usize, y as usize * w + x1 as usize);
+            for (m, &p) in self.mean[3 * a..3 * b].iter_mut().zip(&px[3 * a..3 * b]) {
+                *m = f32::from(p);
+            }
+            self.held_since[a..b].fill(f32::NAN);
+        }
     }
 
     fn check_size(&self, frame_index: u32, image: &RgbImage) -> Result<()> {

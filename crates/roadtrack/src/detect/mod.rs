@@ -4,13 +4,14 @@
 //! class, score, mean colour when known) and, for detectors that have one, the foreground
 //! mask. [`background::BackgroundDetector`] is the background-subtraction detector (per-pixel
 //! model of [`background_model`] started by [`startup`], clean-up and connected regions of
-//! [`regions`], cut into vehicles by [`split`] and into people by [`columns`]).
+//! [`regions`], ghosts dropped by [`ghosts`], cut into vehicles by [`split`] and into people by [`columns`]).
 
 pub mod background;
 pub mod background_model;
 pub mod centernet;
 pub mod columns;
 pub mod file;
+pub mod ghosts;
 pub mod motion_gate;
 pub mod nested;
 pub mod regions;

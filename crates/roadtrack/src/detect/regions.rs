@@ -271,6 +271,17 @@ pub fn extract_regions(
     extract_regions_split(mask, image, config, None, None)
 }
 
+/// The 8-connected components of non-zero pixels of `mask`, each as its runs `(y, x0, x1)`
+/// (pixels `x0..x1` of row `y`) in raster order; components ordered by their first pixel.
+pub(super) fn component_runs(mask: &image::GrayImage) -> Vec<Vec<(u32, u32, u32)>> {
+    let comps = Components::label(mask);
+    let mut out = vec![Vec::new(); comps.count];
+    for (r, &l) in comps.runs.iter().zip(&comps.label) {
+        out[l as usize].push((r.y, r.x0, r.x1));
+    }
+    out
+}
+
 /// Running sums of one region's pixels.
 #[derive(Clone, Copy)]
 struct Acc {

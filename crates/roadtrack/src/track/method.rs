@@ -170,7 +170,7 @@ impl MethodConfig {
     }
 
     /// The method with its background detector and model as published: median start-up,
-    /// no shadow suppression, hold or splitting (see
+    /// no shadow suppression, hold, ghost suppression or splitting (see
     /// [`BackgroundDetectorConfig::as_published`]); the filters weigh particles by the
     /// image likelihood only.
     pub fn as_published(mut self) -> Self {
