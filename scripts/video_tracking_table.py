@@ -9,7 +9,8 @@ the peer.
     python scripts/video_tracking_table.py --roadtrack $CARGO_TARGET_DIR/release/roadtrack \\
         [--frames 300] [--seeds 1,2,3] [--scenes road,intersection,crossing] \\
         [--views aerial,oblique] [--detectors background,cnn] [--methods relaxation,mrf,pf,phd] \\
-        [--cnn-args '--model F.onnx --pyramid 1' [--cnn-args …]] [--work /tmp/vidtrack]
+        [--cnn-args '--model F.onnx --pyramid 1' [--cnn-args …]] [--background-args …] \\
+        [--work /tmp/vidtrack]
 
 Run from the repository root (configs/ and models/detector.onnx are read from there).
 Not part of the test suite; needs `pip install opencv-python-headless numpy norfair`.
@@ -68,9 +69,12 @@ def main():
                     help="extra flags for --detector cnn, e.g. '--model F.onnx --pyramid 1' "
                          "(`--cnn-args=--keep-nested` for one flag); given more than once, "
                          "each is a row of its own on the same frames")
+    ap.add_argument("--background-args", action="append",
+                    help="the same for --detector background, e.g. "
+                         "'--detector-config configs/detect-pedestrians.toml'")
     a = ap.parse_args()
     methods = [(m, e) for m, e in METHODS if m in a.methods.split(",")]
-    variants = a.cnn_args or [""]
+    variants = {"cnn": a.cnn_args or [""], "background": a.background_args or [""]}
     rt = a.roadtrack
     seeds = [int(s) for s in a.seeds.split(",")]
     os.makedirs(a.work, exist_ok=True)
@@ -90,13 +94,13 @@ def main():
                 mog2_norfair.main(seq, t)
                 rows.append(("MOG2 + norfair (peer)", evaluate(rt, seq, t)))
                 for det in a.detectors.split(","):
-                    for variant in (variants if det == "cnn" else [""]):
+                    for variant in variants.get(det, [""]):
                         for method, extra in methods:
                             det_extra = variant.replace("{seq}", seq).split()
                             run([rt, "-q", "track", seq, "--method", method, "--detector", det,
                                  *det_extra, *extra, "--seed", "0", "-o", t])
                             name = f"{method} + {det}"
-                            if len(variants) > 1 and det == "cnn":
+                            if len(variants.get(det, [])) > 1:
                                 name += f" [{variant or 'defaults'}]"
                             rows.append((name, evaluate(rt, seq, t)))
                 for name, m in rows:
