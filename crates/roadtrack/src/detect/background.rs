@@ -149,8 +149,8 @@ impl BackgroundDetector {
     }
 
     /// Runs on one frame and updates the background: classify, clean the mask, drop and
-    /// repair ghosts ([`super::ghosts`]), learn outside the held (cleaned) foreground, then regions (split by the calibration's
-    /// expected vehicle size when there is one).
+    /// repair ghosts ([`super::ghosts`]), learn outside the held (cleaned) foreground, then
+    /// regions (split by the calibration's expected vehicle size when there is one).
     pub fn process(&mut self, frame: &Frame) -> Result<Foreground> {
         let raw = self.model.classify(frame.index, &frame.image)?;
         let mut mask = clean_mask(&raw, &self.config.regions);
