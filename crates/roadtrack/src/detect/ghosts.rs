@@ -57,6 +57,15 @@ pub fn suppress(
     let (w, h) = mask.dimensions();
     let t = time_s as f32;
     let still = |since: f32| !since.is_nan() && f64::from(t - since) >= still_s;
+    // Most frames of moving traffic hold no pixel that long: skip the labelling then.
+    let any_still = mask
+        .as_raw()
+        .iter()
+        .zip(model.held_since())
+        .any(|(&m, &since)| m != 0 && still(since));
+    if !any_still {
+        return 0;
+    }
     let mut ghosts = Vec::new();
     for runs in component_runs(mask) {
         let n: u64 = runs.iter().map(|&(_, a, b)| u64::from(b - a)).sum();
