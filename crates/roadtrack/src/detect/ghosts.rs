@@ -54,7 +54,7 @@ pub fn suppress(
     if ratio <= 0.0 {
         return 0;
     }
-    let (w, h) = mask.dimensions();
+    let w = mask.width();
     let t = time_s as f32;
     let still = |since: f32| !since.is_nan() && f64::from(t - since) >= still_s;
     // Most frames of moving traffic hold no pixel that long: skip the labelling then.
@@ -86,7 +86,7 @@ pub fn suppress(
         if (n_still as f64) < STILL_SHARE * n as f64 {
             continue;
         }
-        let (e_frame, e_background) = outline_edges(mask, &runs, w, h, |x, y| {
+        let (e_frame, e_background) = outline_edges(mask, &runs, |x, y| {
             let i = 3 * (y as usize * w as usize + x as usize);
             let p = &image.as_raw()[i..i + 3];
             let m = &model.mean()[i..i + 3];
@@ -101,9 +101,8 @@ pub fn suppress(
     }
     for runs in &ghosts {
         for &(y, a, b) in runs {
-            for x in a..b {
-                mask.put_pixel(x, y, image::Luma([0]));
-            }
+            let row = (y * w) as usize;
+            mask.as_mut()[row + a as usize..row + b as usize].fill(0);
         }
         model.absorb(image, runs);
     }
@@ -117,13 +116,12 @@ pub fn suppress(
 fn outline_edges(
     mask: &GrayImage,
     runs: &[(u32, u32, u32)],
-    w: u32,
-    h: u32,
     value: impl Fn(u32, u32) -> (f32, f32),
 ) -> (f64, f64) {
+    let (w, h) = mask.dimensions();
     let inside = |x: i64, y: i64| x >= 0 && y >= 0 && x < i64::from(w) && y < i64::from(h);
     let off = |x: i64, y: i64| inside(x, y) && mask.get_pixel(x as u32, y as u32)[0] == 0;
-    // Gradient magnitude of both images at (x, y), central differences clamped at the border.
+    // Sobel magnitude of both images at (x, y), the image clamped at its border.
     let grad = |x: i64, y: i64| -> (f32, f32) {
         let at = |x: i64, y: i64| {
             value(
