@@ -43,6 +43,9 @@ shadows = false
 hold_still_s = 0.0
 ghost_edge_ratio = 0.0
 
+[regions]
+position = "centroid"
+
 [split]
 enabled = false
 """

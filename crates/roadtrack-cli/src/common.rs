@@ -233,7 +233,7 @@ pub struct LifecycleArgs {
     /// The method's output as published: no confirmation, coasting, box smoothing or
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
-    /// shadow suppression, hold or region splitting).
+    /// shadow suppression, hold, ghost suppression or region splitting; region centroids).
     #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes", "smooth_vehicle_boxes"])]
     pub as_published: bool,
     /// Offline gap closing: join a track that ends to one that starts up to N frames later

@@ -47,11 +47,13 @@ impl BackgroundDetectorConfig {
     }
 
     /// The same config with the detector's later additions off (median start-up, no
-    /// shadow suppression, no hold, no splitting): the detector `--as-published` runs use.
+    /// shadow suppression, no hold, no ghost suppression, no splitting, centroid as the
+    /// centre): the detector `--as-published` runs use.
     pub fn as_published(mut self) -> Self {
         self.background = self.background.as_published();
         self.split.enabled = false;
         self.split.columns = false;
+        self.regions.position = super::regions::RegionPosition::Centroid;
         self
     }
 }
@@ -185,12 +187,13 @@ impl BackgroundDetector {
     /// Runs on one frame: detections numbered 1.. in raster order, and the cleaned mask.
     pub fn detect_with_mask(&mut self, frame: &Frame) -> Result<FrameDetections> {
         let found = self.process(frame)?;
+        let position = self.config.regions.position;
         Ok(FrameDetections {
             detections: found
                 .regions
                 .iter()
                 .enumerate()
-                .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1))
+                .map(|(i, r)| r.to_detection(frame.index, i as u64 + 1, position))
                 .collect(),
             foreground: Some(found.mask),
         })
