@@ -242,41 +242,39 @@ impl Params {
 
     /// The class of colour `rgb` against mean `mu` and variance `v`, and the colour
     /// difference with its squared norm.
-    #[inline]
+    ///
+    /// Branch-free (every test computed, the class chosen by selects) and always inlined:
+    /// as a called function with early returns it cost a call and two unpredictable
+    /// branches per pixel. The arithmetic and its order are those of the tests written
+    /// out (the test `branch_free_classify_matches_the_written_out_tests` checks the
+    /// class on random colours), so the masks are bit-identical.
+    #[inline(always)]
     fn classify(&self, rgb: &[u8], mu: &[f32], v: f32) -> (u8, [f32; 3], f32) {
-        let d = [
-            f32::from(rgb[0]) - mu[0],
-            f32::from(rgb[1]) - mu[1],
-            f32::from(rgb[2]) - mu[2],
-        ];
+        let i = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
+        let d = [i[0] - mu[0], i[1] - mu[1], i[2] - mu[2]];
         let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         let thr = self.k2x3 * v.max(self.min_var);
-        if dist2 <= thr {
-            return (CLASS_BG, d, dist2);
-        }
-        if self.shadows {
-            // MOG2's shadow test (Prati et al. 2003; OpenCV's detectShadowGMM): the
-            // brightness ratio β = I·μ/|μ|² in [τ, 1) and the chromaticity distortion
-            // |I − βμ|² below the foreground threshold scaled by β².
-            let mu2 = mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2];
-            if mu2 > 0.0 {
-                let i = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
-                let beta = (i[0] * mu[0] + i[1] * mu[1] + i[2] * mu[2]) / mu2;
-                if beta >= self.tau && beta < 1.0 {
-                    let e0 = i[0] - beta * mu[0];
-                    let e1 = i[1] - beta * mu[1];
-                    let e2 = i[2] - beta * mu[2];
-                    if e0 * e0 + e1 * e1 + e2 * e2 <= thr * beta * beta {
-                        return (CLASS_SHADOW, d, dist2);
-                    }
-                }
-            }
-        }
-        (CLASS_FG, d, dist2)
+        // MOG2's shadow test (Prati et al. 2003; OpenCV's detectShadowGMM): the brightness
+        // ratio β = I·μ/|μ|² in [τ, 1) and the chromaticity distortion |I − βμ|² below
+        // the foreground threshold scaled by β². With |μ|² = 0, β is not finite and the
+        // `mu2 > 0` term decides.
+        let mu2 = mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2];
+        let beta = (i[0] * mu[0] + i[1] * mu[1] + i[2] * mu[2]) / mu2;
+        let e0 = i[0] - beta * mu[0];
+        let e1 = i[1] - beta * mu[1];
+        let e2 = i[2] - beta * mu[2];
+        let shadow = self.shadows
+            & (mu2 > 0.0)
+            & (beta >= self.tau)
+            & (beta < 1.0)
+            & (e0 * e0 + e1 * e1 + e2 * e2 <= thr * beta * beta);
+        let not_bg = dist2 > thr;
+        let class = u8::from(not_bg) * (CLASS_FG + u8::from(shadow) * (CLASS_SHADOW - CLASS_FG));
+        (class, d, dist2)
     }
 
     /// Moves mean and variance towards the pixel by rate `a`.
-    #[inline]
+    #[inline(always)]
     fn learn(&self, mu: &mut [f32], v: &mut f32, d: [f32; 3], dist2: f32, a: f32) {
         mu[0] += a * d[0];
         mu[1] += a * d[1];
@@ -610,6 +608,75 @@ mod tests {
         assert_eq!(model.background(), direct.background());
         assert!(bootstrap_from_frames(&[], BackgroundConfig::default()).is_err());
         Ok(())
+    }
+
+    /// `Params::classify` as the tests read, one after another with early returns.
+    fn classify_written_out(p: &Params, rgb: &[u8], mu: &[f32], v: f32) -> u8 {
+        let i = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
+        let d = [i[0] - mu[0], i[1] - mu[1], i[2] - mu[2]];
+        let thr = p.k2x3 * v.max(p.min_var);
+        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= thr {
+            return CLASS_BG;
+        }
+        if p.shadows {
+            let mu2 = mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2];
+            if mu2 > 0.0 {
+                let beta = (i[0] * mu[0] + i[1] * mu[1] + i[2] * mu[2]) / mu2;
+                if beta >= p.tau && beta < 1.0 {
+                    let e = [
+                        i[0] - beta * mu[0],
+                        i[1] - beta * mu[1],
+                        i[2] - beta * mu[2],
+                    ];
+                    if e[0] * e[0] + e[1] * e[1] + e[2] * e[2] <= thr * beta * beta {
+                        return CLASS_SHADOW;
+                    }
+                }
+            }
+        }
+        CLASS_FG
+    }
+
+    #[test]
+    fn branch_free_classify_matches_the_written_out_tests() {
+        use rand::RngExt;
+        let mut rng = crate::rng::rng_for(7, crate::rng::Stream::Synthetic, 0);
+        for shadows in [true, false] {
+            let p = Params::of(&BackgroundConfig {
+                shadows,
+                ..BackgroundConfig::default()
+            });
+            let mut seen = [0usize; 3];
+            for n in 0..200_000 {
+                let rgb: [u8; 3] = rng.random();
+                // A darker copy of the mean makes shadows common; every 50th mean is black.
+                let mu: [f32; 3] = if n % 50 == 0 {
+                    [0.0; 3]
+                } else if n % 3 == 0 {
+                    let k = rng.random_range(1.0..2.5f32);
+                    [
+                        f32::from(rgb[0]) * k,
+                        f32::from(rgb[1]) * k,
+                        f32::from(rgb[2]) * k,
+                    ]
+                } else {
+                    [
+                        rng.random_range(0.0..255.0),
+                        rng.random_range(0.0..255.0),
+                        rng.random_range(0.0..255.0),
+                    ]
+                };
+                let v = rng.random_range(0.0..400.0f32);
+                let want = classify_written_out(&p, &rgb, &mu, v);
+                let (got, d, dist2) = p.classify(&rgb, &mu, v);
+                assert_eq!(got, want, "rgb {rgb:?} mu {mu:?} v {v}");
+                assert_eq!(dist2, d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                seen[usize::from(got)] += 1;
+            }
+            // All three classes occur (none with shadows off), so the test can fail.
+            assert!(seen[0] > 1000 && seen[1] > 1000, "{seen:?}");
+            assert_eq!(seen[2] > 1000, shadows, "{seen:?}");
+        }
     }
 
     #[test]
