@@ -711,7 +711,10 @@ mod tests {
             RegionPosition::Centroid
         );
         let e = read("position = \"middle\"").unwrap_err().to_string();
-        assert!(e.contains("position") || e.contains("middle"), "{e}");
+        assert!(
+            e.contains("position = \"middle\"") && e.contains("expected `box` or `centroid`"),
+            "{e}"
+        );
     }
 
     #[test]
