@@ -3,7 +3,7 @@
 //! A [`Detector`] turns one frame into [`FrameDetections`]: the objects found (centre, box,
 //! class, score, mean colour when known) and, for detectors that have one, the foreground
 //! mask. [`background::BackgroundDetector`] is the background-subtraction detector (per-pixel
-//! model of [`background_model`] started by [`startup`], clean-up and connected regions of
+//! model of [`background_model`] started by [`startup`], clean-up of [`morphology`] and connected regions of
 //! [`regions`], ghosts dropped by [`ghosts`], cut into vehicles by [`split`] and into people by [`columns`]).
 
 pub mod background;
@@ -12,6 +12,7 @@ pub mod centernet;
 pub mod columns;
 pub mod file;
 pub mod ghosts;
+pub mod morphology;
 pub mod motion_gate;
 pub mod nested;
 pub mod regions;
