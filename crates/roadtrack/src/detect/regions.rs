@@ -464,10 +464,7 @@ impl Region {
     /// centroid (`position`), size from the box, the mean colour, the area.
     pub fn to_detection(&self, frame: u32, id: u64, position: RegionPosition) -> Detection {
         let pos_px = match position {
-            RegionPosition::Box => Point::new(
-                self.bbox.left + self.bbox.width / 2.0,
-                self.bbox.top + self.bbox.height / 2.0,
-            ),
+            RegionPosition::Box => self.bbox.centre(),
             RegionPosition::Centroid => self.centroid_px,
         };
         Detection {
@@ -511,10 +508,7 @@ mod tests {
         assert_eq!(r[0].bbox, BBox::new(1.0, 1.0, 6.0, 6.0));
         let d = r[0].to_detection(3, 7, RegionPosition::Box);
         let (w, h) = d.size_px.unwrap();
-        assert_eq!(
-            BBox::new(d.pos_px.x - w / 2.0, d.pos_px.y - h / 2.0, w, h),
-            r[0].bbox
-        );
+        assert_eq!(BBox::from_centre(d.pos_px, w, h), r[0].bbox);
         let c = r[0].to_detection(3, 7, RegionPosition::Centroid);
         assert_eq!(c.pos_px, r[0].centroid_px);
         assert!(c.pos_px.x < d.pos_px.x && c.pos_px.y < d.pos_px.y);
