@@ -8,7 +8,11 @@ frames.
 
     python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
         --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
-        [--views aerial,oblique] [--cnn-model models/detector.onnx]
+        [--views aerial,oblique] [--cnn-model models/detector.onnx] \\
+        [--config-row 'name=path/to.toml' …]
+
+Each --config-row adds a background-detector row run with `--config path/to.toml` (on the
+same frames as the others, e.g. the default with one setting changed).
 
 With --cnn-model, the learned detector (`--detector cnn`) gets a row too, and a second
 table gives its recall and precision for vehicles and pedestrians separately (precision
@@ -45,6 +49,7 @@ ghost_edge_ratio = 0.0
 
 [regions]
 position = "centroid"
+age_gap_s = 0.0
 
 [split]
 enabled = false
@@ -260,6 +265,8 @@ def main():
                     help="extra flags for the learned detector, e.g. '--pyramid 1 --min-score 0.4'; "
                          "{seq} stands for the sequence folder, e.g. "
                          "'--zoom-small 12 --calibration {seq}/calibration.toml'")
+    ap.add_argument("--config-row", action="append", default=[],
+                    help="'name=path.toml': a background-detector row with --config path.toml")
     ap.add_argument("--only-cnn", action="store_true",
                     help="only the learned detector's rows (no background detectors, no OpenCV)")
     a = ap.parse_args()
@@ -283,8 +290,11 @@ def main():
                 ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
                 ("pedestrians config", ["--config", PEDESTRIANS_CONFIG,
                                         "--calibration", f"{seq}/calibration.toml"]),
-            ]:
+            ] + [(row.split("=", 1)[0], ["--config", row.split("=", 1)[1]])
+                 for row in a.config_row]:
                 out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
+                if name not in ("median (old)", "default", "default + split", "pedestrians config"):
+                    out = f"{seq}/det_row_{''.join(c if c.isalnum() else '_' for c in name)}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
                 runs[name] = read_ours(out)
             if a.cnn_model:

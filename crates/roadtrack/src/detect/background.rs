@@ -47,13 +47,14 @@ impl BackgroundDetectorConfig {
     }
 
     /// The same config with the detector's later additions off (median start-up, no
-    /// shadow suppression, no hold, no ghost suppression, no splitting, centroid as the
-    /// centre): the detector `--as-published` runs use.
+    /// shadow suppression, no hold, no ghost suppression, no splitting, no age cut, centroid
+    /// as the centre): the detector `--as-published` runs use.
     pub fn as_published(mut self) -> Self {
         self.background = self.background.as_published();
         self.split.enabled = false;
         self.split.columns = false;
         self.regions.position = super::regions::RegionPosition::Centroid;
+        self.regions.age_gap_s = 0.0;
         self
     }
 }
@@ -76,6 +77,8 @@ pub struct BackgroundDetector {
     splitter: Option<Splitter>,
     /// For `regions.min_person_share`, when it is set and there is a calibration.
     person: Option<PersonSize>,
+    /// How long each pixel has been foreground, for `regions.age_gap_s`.
+    ages: super::age_cut::AgeMap,
 }
 
 impl BackgroundDetector {
@@ -113,6 +116,7 @@ impl BackgroundDetector {
             model,
             splitter,
             person,
+            ages: super::age_cut::AgeMap::default(),
         }
     }
 
@@ -165,8 +169,17 @@ impl BackgroundDetector {
         );
         self.model
             .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
+        let gap = self.config.regions.age_gap_s;
+        let cut = (gap > 0.0)
+            .then(|| {
+                self.ages
+                    .update(&mask, frame.time_s, self.config.regions.age_grace_s);
+                self.ages
+                    .cut(&mask, gap as f32, self.config.regions.age_min_piece_px)
+            })
+            .flatten();
         let mut regions = extract_regions_split(
-            &mask,
+            cut.as_ref().unwrap_or(&mask),
             &frame.image,
             &self.config.regions,
             self.splitter.as_ref(),
@@ -310,6 +323,71 @@ mod tests {
         let on = run(0.25)?;
         assert!(on.iter().all(|&n| n == 1), "only the person kept: {on:?}");
         Ok(())
+    }
+
+    /// A block drives in, waits 3 s and leaves; while it waits a smaller block walks down
+    /// past its right side, touching it. Without the age cut the two are one region in the
+    /// frames where they touch; with it, two.
+    #[test]
+    fn a_walker_passing_a_waiting_vehicle_is_cut_from_it_by_age() -> Result<()> {
+        let frames: Vec<Frame> = (1..=80u32)
+            .map(|i| {
+                let mut img = RgbImage::from_pixel(120, 80, Rgb([90, 90, 90]));
+                // The vehicle: 24 × 12 px, x0 = 3i − 24 until it stops at 6 (frame 10),
+                // leaves from frame 40.
+                let x0 = match i {
+                    ..=10 => 3 * i as i32 - 24,
+                    11..=40 => 6,
+                    _ => 6 + 3 * (i as i32 - 40),
+                };
+                // The walker: 6 × 16 px at x 30–35, its top at y = 2i − 36 (down 2 px
+                // per frame).
+                let y0 = 2 * i as i32 - 36;
+                for y in 0..80i32 {
+                    for x in 0..120i32 {
+                        let car = (x0..x0 + 24).contains(&x) && (30..42).contains(&y);
+                        let walker = (30..36).contains(&x) && (y0..y0 + 16).contains(&y);
+                        if car {
+                            img.put_pixel(x as u32, y as u32, Rgb([200, 40, 40]));
+                        } else if walker {
+                            img.put_pixel(x as u32, y as u32, Rgb([40, 40, 200]));
+                        }
+                    }
+                }
+                Frame {
+                    index: i,
+                    time_s: f64::from(i - 1) / 10.0,
+                    image: img,
+                }
+            })
+            .collect();
+        let run = |gap: f64| -> Result<Vec<usize>> {
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.age_gap_s = gap;
+            cfg.regions.min_area_px = 20;
+            let mut det =
+                BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(80))?;
+            frames.iter().map(|f| Ok(det.detect(f)?.len())).collect()
+        };
+        let (joined, cut) = (run(0.0)?, run(1.0)?);
+        // Frames 27–33: the walker's rows overlap the vehicle's (30–41) and its columns touch
+        // the vehicle's right edge (x 29).
+        for i in 27..=33usize {
+            assert_eq!(joined[i - 1], 1, "frame {i} without the cut: {joined:?}");
+            assert_eq!(cut[i - 1], 2, "frame {i} with the cut: {cut:?}");
+        }
+        // Frame 20: the walker is still 10 rows above the waiting vehicle: two regions
+        // either way, the vehicle not cut along its own pixels.
+        assert_eq!((joined[19], cut[19]), (2, 2));
+        Ok(())
+    }
+
+    #[test]
+    fn an_age_gap_below_zero_is_refused_by_name() {
+        let mut cfg = BackgroundDetectorConfig::default();
+        cfg.regions.age_gap_s = -1.0;
+        let e = cfg.validate().expect_err("refused").to_string();
+        assert!(e.contains("regions.age_gap_s"), "{e}");
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! model of [`background_model`] started by [`startup`], clean-up of [`morphology`] and connected regions of
 //! [`regions`], ghosts dropped by [`ghosts`], cut into vehicles by [`split`] and into people by [`columns`]).
 
+pub mod age_cut;
 pub mod background;
 pub mod background_model;
 pub mod centernet;
