@@ -54,7 +54,8 @@ impl AgeMap {
                 for ((&m, since), last) in m.iter().zip(since).zip(last) {
                     let on = m != 0;
                     // NaN compares false: a pixel never seen starts now.
-                    let restart = on & !(t - *last <= grace);
+                    let recent = t - *last <= grace;
+                    let restart = on & !recent;
                     *since = if restart { t } else { *since };
                     *last = if on { t } else { *last };
                 }
@@ -116,7 +117,7 @@ fn cut_with(
     scratch: &mut Scratch,
 ) -> Option<GrayImage> {
     let (w, h) = (mask.width() as usize, mask.height() as usize);
-    if held_since.len() != w * h || !(gap_s > 0.0) || w == 0 || h == 0 {
+    if held_since.len() != w * h || gap_s.is_nan() || gap_s <= 0.0 || w == 0 || h == 0 {
         return None;
     }
     use rayon::prelude::*;
