@@ -378,13 +378,9 @@ mod tests {
 
     #[test]
     fn the_separable_minimum_cuts_what_the_written_out_test_cuts() {
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 33) as u32
-        };
+        use rand::RngExt;
+        let mut rng = crate::rng::rng_for(99, crate::rng::Stream::Synthetic, 0);
+        let mut next = || rng.random::<u32>();
         let mut ages = AgeMap::default();
         let mut cut_somewhere = 0;
         for trial in 0..200 {

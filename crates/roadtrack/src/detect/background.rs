@@ -236,27 +236,39 @@ mod tests {
     use super::*;
     use image::Rgb;
 
-    /// Frames of a grey background with `n` coloured 8×8 squares moving right 2 px/frame.
-    fn scene(n: u32, frames: u32) -> Vec<Frame> {
-        (1..=frames)
-            .map(|i| {
-                let mut img = RgbImage::from_pixel(96, 64, Rgb([90, 90, 90]));
-                for k in 0..n {
-                    let x0 = 4 + 2 * i + 20 * k;
-                    let y0 = 8 + 16 * k;
-                    for y in y0..y0 + 8 {
-                        for x in x0..x0 + 8 {
-                            img.put_pixel(x % 96, y, Rgb([200, 40 + 50 * k as u8, 40]));
-                        }
-                    }
-                }
-                Frame {
-                    index: i,
-                    time_s: f64::from(i - 1) / 10.0,
-                    image: img,
-                }
+    /// Frames 1..=n at 10 frames/s, frame `i` drawn by `draw(i)`.
+    fn frames_at_10_fps(n: u32, draw: impl Fn(u32) -> RgbImage) -> Vec<Frame> {
+        (1..=n)
+            .map(|i| Frame {
+                index: i,
+                time_s: f64::from(i - 1) / 10.0,
+                image: draw(i),
             })
             .collect()
+    }
+
+    /// Detections per frame of a detector with `cfg`, started from all of `frames`.
+    fn detections_per_frame(cfg: BackgroundDetectorConfig, frames: &[Frame]) -> Result<Vec<usize>> {
+        let total = Some(frames.len() as u32);
+        let mut det = BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), total)?;
+        frames.iter().map(|f| Ok(det.detect(f)?.len())).collect()
+    }
+
+    /// Frames of a grey background with `n` coloured 8×8 squares moving right 2 px/frame.
+    fn scene(n: u32, frames: u32) -> Vec<Frame> {
+        frames_at_10_fps(frames, |i| {
+            let mut img = RgbImage::from_pixel(96, 64, Rgb([90, 90, 90]));
+            for k in 0..n {
+                let x0 = 4 + 2 * i + 20 * k;
+                let y0 = 8 + 16 * k;
+                for y in y0..y0 + 8 {
+                    for x in x0..x0 + 8 {
+                        img.put_pixel(x % 96, y, Rgb([200, 40 + 50 * k as u8, 40]));
+                    }
+                }
+            }
+            img
+        })
     }
 
     #[test]
@@ -294,30 +306,22 @@ mod tests {
         // A person's box (0.4 H × H) and a piece 0.3 H square: 0.225 of the person's box.
         let h = (area / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
         let (pw, ph, piece) = ((0.4 * h) as u32, h as u32, (0.3 * h) as u32);
-        let frames: Vec<Frame> = (1..=20u32)
-            .map(|i| {
-                let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
-                for (x0, w, hh) in [(100 + 3 * i, pw, ph), (400 + 3 * i, piece, piece)] {
-                    for y in foot_y - hh..foot_y {
-                        for x in x0..x0 + w {
-                            img.put_pixel(x, y, Rgb([200, 60, 40]));
-                        }
+        let frames = frames_at_10_fps(20, |i| {
+            let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
+            for (x0, w, hh) in [(100 + 3 * i, pw, ph), (400 + 3 * i, piece, piece)] {
+                for y in foot_y - hh..foot_y {
+                    for x in x0..x0 + w {
+                        img.put_pixel(x, y, Rgb([200, 60, 40]));
                     }
                 }
-                Frame {
-                    index: i,
-                    time_s: f64::from(i - 1) / 10.0,
-                    image: img,
-                }
-            })
-            .collect();
+            }
+            img
+        });
         let run = |share: f64| -> Result<Vec<usize>> {
             let mut cfg = BackgroundDetectorConfig::default();
             cfg.regions.min_person_share = share;
             cfg.calibration = Some(Box::new(cal.clone()));
-            let mut det =
-                BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(20))?;
-            frames.iter().map(|f| Ok(det.detect(f)?.len())).collect()
+            detections_per_frame(cfg, &frames)
         };
         assert!(run(0.0)?.iter().all(|&n| n == 2), "both kept when off");
         let on = run(0.25)?;
@@ -330,44 +334,36 @@ mod tests {
     /// frames where they touch; with it, two.
     #[test]
     fn a_walker_passing_a_waiting_vehicle_is_cut_from_it_by_age() -> Result<()> {
-        let frames: Vec<Frame> = (1..=80u32)
-            .map(|i| {
-                let mut img = RgbImage::from_pixel(120, 80, Rgb([90, 90, 90]));
-                // The vehicle: 24 × 12 px, x0 = 3i − 24 until it stops at 6 (frame 10),
-                // leaves from frame 40.
-                let x0 = match i {
-                    ..=10 => 3 * i as i32 - 24,
-                    11..=40 => 6,
-                    _ => 6 + 3 * (i as i32 - 40),
-                };
-                // The walker: 6 × 16 px at x 30–35, its top at y = 2i − 36 (down 2 px
-                // per frame).
-                let y0 = 2 * i as i32 - 36;
-                for y in 0..80i32 {
-                    for x in 0..120i32 {
-                        let car = (x0..x0 + 24).contains(&x) && (30..42).contains(&y);
-                        let walker = (30..36).contains(&x) && (y0..y0 + 16).contains(&y);
-                        if car {
-                            img.put_pixel(x as u32, y as u32, Rgb([200, 40, 40]));
-                        } else if walker {
-                            img.put_pixel(x as u32, y as u32, Rgb([40, 40, 200]));
-                        }
+        let frames = frames_at_10_fps(80, |i| {
+            let mut img = RgbImage::from_pixel(120, 80, Rgb([90, 90, 90]));
+            // The vehicle: 24 × 12 px, x0 = 3i − 24 until it stops at 6 (frame 10), leaves
+            // from frame 40.
+            let x0 = match i {
+                ..=10 => 3 * i as i32 - 24,
+                11..=40 => 6,
+                _ => 6 + 3 * (i as i32 - 40),
+            };
+            // The walker: 6 × 16 px at x 30–35, its top at y = 2i − 36 (down 2 px per
+            // frame).
+            let y0 = 2 * i as i32 - 36;
+            for y in 0..80i32 {
+                for x in 0..120i32 {
+                    let car = (x0..x0 + 24).contains(&x) && (30..42).contains(&y);
+                    let walker = (30..36).contains(&x) && (y0..y0 + 16).contains(&y);
+                    if car {
+                        img.put_pixel(x as u32, y as u32, Rgb([200, 40, 40]));
+                    } else if walker {
+                        img.put_pixel(x as u32, y as u32, Rgb([40, 40, 200]));
                     }
                 }
-                Frame {
-                    index: i,
-                    time_s: f64::from(i - 1) / 10.0,
-                    image: img,
-                }
-            })
-            .collect();
+            }
+            img
+        });
         let run = |gap: f64| -> Result<Vec<usize>> {
             let mut cfg = BackgroundDetectorConfig::default();
             cfg.regions.age_gap_s = gap;
             cfg.regions.min_area_px = 20;
-            let mut det =
-                BackgroundDetector::bootstrap(cfg, frames.iter().cloned().map(Ok), Some(80))?;
-            frames.iter().map(|f| Ok(det.detect(f)?.len())).collect()
+            detections_per_frame(cfg, &frames)
         };
         let (joined, cut) = (run(0.0)?, run(1.0)?);
         // Frames 27–33: the walker's rows overlap the vehicle's (30–41) and its columns touch
