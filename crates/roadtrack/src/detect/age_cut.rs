@@ -193,10 +193,12 @@ fn cut_with(
     if !any {
         return None;
     }
-    if min_piece_px > 1 {
-        let cut: Vec<usize> = (0..w * h).filter(|&i| m[i] != out.as_raw()[i]).collect();
-        rejoin_small_pieces(&mut out, &cut, min_piece_px);
+    if min_piece_px <= 1 {
+        return Some(out);
     }
+    let cut: Vec<usize> = (0..w * h).filter(|&i| m[i] != out.as_raw()[i]).collect();
+    rejoin_small_pieces(&mut out, &cut, min_piece_px);
+    // Every piece may have been joined again.
     (out != *mask).then_some(out)
 }
 
