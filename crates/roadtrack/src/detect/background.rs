@@ -77,6 +77,10 @@ pub struct BackgroundDetector {
     splitter: Option<Splitter>,
     /// For `regions.min_person_share`, when it is set and there is a calibration.
     person: Option<PersonSize>,
+    /// The region settings regions are extracted with: `config.regions` with the area
+    /// floor lowered to `person_min_area_px` when `person` is there (the rest of the floor
+    /// is applied with the person share, [`Self::keep`]).
+    extract: super::regions::RegionConfig,
     /// How long each pixel has been foreground, for `regions.age_gap_s`.
     ages: super::age_cut::AgeMap,
 }
@@ -111,11 +115,16 @@ impl BackgroundDetector {
             }
             _ => None,
         };
+        let mut extract = config.regions.clone();
+        if person.is_some() && extract.person_min_area_px > 0 {
+            extract.min_area_px = extract.min_area_px.min(extract.person_min_area_px);
+        }
         Self {
             config,
             model,
             splitter,
             person,
+            extract,
             ages: super::age_cut::AgeMap::default(),
         }
     }
@@ -181,13 +190,16 @@ impl BackgroundDetector {
         let mut regions = extract_regions_split(
             cut.as_ref().unwrap_or(&mask),
             &frame.image,
-            &self.config.regions,
+            &self.extract,
             self.splitter.as_ref(),
             self.config.split.columns.then_some(&self.config.split),
         );
         if let Some(person) = &self.person {
-            let share = self.config.regions.min_person_share;
-            regions.retain(|r| person_sized(person, share, r));
+            let (share, floor) = (
+                self.config.regions.min_person_share,
+                self.config.regions.min_area_px,
+            );
+            regions.retain(|r| person_sized(person, share, floor, r));
         }
         Ok(Foreground { mask, regions })
     }
@@ -220,15 +232,17 @@ impl super::Detector for BackgroundDetector {
 }
 
 /// Whether region `r`'s box covers at least `share` of the box of a person standing at its
-/// foot point (`regions.min_person_share`); kept where no person size is known there.
+/// foot point (`regions.min_person_share`). Where no person size is known there, whether it
+/// has `min_area_px` pixels (the floor of regions without the person share).
 // Choice: the region's box, not its pixel count, is compared with the person's box: a
 // walker's mask fills a varying share of its box (legs apart or together).
-fn person_sized(person: &PersonSize, share: f64, r: &Region) -> bool {
+fn person_sized(person: &PersonSize, share: f64, min_area_px: u32, r: &Region) -> bool {
     let b = &r.bbox;
     let foot = crate::geometry::Point::new(b.left + b.width / 2.0, b.top + b.height);
-    person
-        .box_area_px(foot)
-        .is_none_or(|a| b.width * b.height >= share * a)
+    match person.box_area_px(foot) {
+        Some(a) => b.width * b.height >= share * a,
+        None => r.area_px >= min_area_px,
+    }
 }
 
 #[cfg(test)]
@@ -326,6 +340,51 @@ mod tests {
         assert!(run(0.0)?.iter().all(|&n| n == 2), "both kept when off");
         let on = run(0.25)?;
         assert!(on.iter().all(|&n| n == 1), "only the person kept: {on:?}");
+        Ok(())
+    }
+
+    /// A far person, a region of fewer pixels than `min_area_px` but person-sized for where
+    /// it stands, is kept with the person share on (its floor `person_min_area_px`); a speck
+    /// as small where no person size is known (above the horizon) is not.
+    #[test]
+    fn a_far_person_under_the_area_floor_is_kept_by_the_person_share() -> Result<()> {
+        let (cal, _) = crate::detect::split::tests::pinhole();
+        let person = PersonSize::new(cal.clone(), 640, 480);
+        let at = |y: u32| person.box_area_px(crate::geometry::Point::new(300.0, f64::from(y)));
+        // The lowest image row where a person's box is 30–50 px² (far away), and a row
+        // above the horizon (no size known).
+        let foot_y = (0..480u32)
+            .rev()
+            .find(|&y| at(y).is_some_and(|a| (30.0..=50.0).contains(&a)))
+            .expect("a far row");
+        let sky_y = (0..480u32)
+            .find(|&y| at(y).is_none())
+            .expect("a row above the horizon");
+        let h = (at(foot_y).expect("far row") / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
+        let (pw, ph) = ((0.4 * h).round() as u32, h.round() as u32);
+        assert!(pw * ph < 60, "{pw} × {ph}");
+        let frames = frames_at_10_fps(20, |i| {
+            let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
+            for (x0, foot) in [(100 + 2 * i, foot_y), (400 + 2 * i, sky_y + ph)] {
+                for y in foot - ph..foot {
+                    for x in x0..x0 + pw {
+                        img.put_pixel(x, y, Rgb([200, 60, 40]));
+                    }
+                }
+            }
+            img
+        });
+        let run = |floor: u32| -> Result<Vec<usize>> {
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.min_person_share = 0.4;
+            cfg.regions.person_min_area_px = floor;
+            cfg.regions.open_radius_px = 0;
+            cfg.calibration = Some(Box::new(cal.clone()));
+            detections_per_frame(cfg, &frames)
+        };
+        assert!(run(0)?.iter().all(|&n| n == 0), "both under min_area_px");
+        let on = run(20)?;
+        assert!(on.iter().all(|&n| n == 1), "the far person kept: {on:?}");
         Ok(())
     }
 

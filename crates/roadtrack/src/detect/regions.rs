@@ -24,8 +24,19 @@ pub struct RegionConfig {
     /// camera ([`super::split::PersonSize`]). Drops the pieces of a person (a head or legs
     /// beside a post) and small ghosts, at any distance from the camera. Needs a calibration
     /// that sees heights (an oblique one, `--calibration`); without one it does nothing.
-    /// Default 0 (off); `configs/detect-pedestrians.toml` sets 0.4.
+    /// Default 0 (off); `configs/detect-pedestrians.toml` and
+    /// `configs/detect-intersection.toml` set 0.4.
     pub min_person_share: f64,
+    /// With `min_person_share` on and a person size known at a region's foot point, the
+    /// smallest region kept there, px², in place of `min_area_px`: the share decides, and
+    /// this floor only drops specks. Elsewhere (no calibration, a nadir one, a foot point
+    /// off the ground) `min_area_px` applies. Default 20; 0 keeps `min_area_px` everywhere.
+    ///
+    /// Choice: 20. A fixed `min_area_px` of 60 dropped most of the far pedestrians of the
+    /// simulator's oblique intersection (their boxes 31–72 px², median 44, for 1 716 of
+    /// 2 428 missed on seed 2); the person share already drops what is small for where it
+    /// stands (docs/EXPERIMENTS.md "Far pedestrians").
+    pub person_min_area_px: u32,
     /// Where a detection's centre is: `"box"` (the middle of the region's tight box, so
     /// that centre ± size / 2 is that box) or `"centroid"` (the mean of its pixels, seed
     /// 000's vehicle position; METHODS.md §1 "Vehicle extraction"). Default `"box"`;
@@ -74,6 +85,7 @@ impl Default for RegionConfig {
             min_area_px: 60,
             max_area_px: 50_000,
             min_person_share: 0.0,
+            person_min_area_px: 20,
             position: RegionPosition::Box,
             age_gap_s: 2.0,
             age_grace_s: 0.3,
