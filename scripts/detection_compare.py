@@ -3,8 +3,9 @@
 "Detection"): roadtrack's background detector as it was (median start-up, no shadow
 suppression, hold, ghost suppression or splitting), as it is by default, with region splitting
 (`--calibration … --split`), and with the settings for cameras that watch people
-(`--config configs/detect-pedestrians.toml --calibration …`), and OpenCV's MOG2 + contours, on the same
-frames.
+(`--config configs/detect-pedestrians.toml --calibration …`), with the settings for cameras that
+watch vehicles and people (`--config configs/detect-intersection.toml --calibration …`), and
+OpenCV's MOG2 + contours, on the same frames.
 
     python scripts/detection_compare.py --roadtrack target/release/roadtrack \\
         --frames 300 --seed 1 --work /tmp/detcmp [--scenes road,intersection,crossing] \\
@@ -12,7 +13,9 @@ frames.
         [--config-row 'name=path/to.toml' …]
 
 Each --config-row adds a background-detector row run with `--config path/to.toml` (on the
-same frames as the others, e.g. the default with one setting changed).
+same frames as the others, e.g. the default with one setting changed); flags after the path
+are passed too, `{seq}` standing for the sequence folder (`'name=p.toml --calibration
+{seq}/calibration.toml'`).
 
 With --cnn-model, the learned detector (`--detector cnn`) gets a row too, and a second
 table gives its recall and precision for vehicles and pedestrians separately (precision
@@ -61,6 +64,9 @@ CLASSES = {1: "ped", 3: "car", 5: "moto", 6: "lorry/bus"}
 # apart; with the calibration, regions much smaller than a person there dropped).
 PEDESTRIANS_CONFIG = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "configs",
                                   "detect-pedestrians.toml")
+# For cameras that watch vehicles and people (the person share with its lower floor).
+INTERSECTION_CONFIG = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "configs",
+                                   "detect-intersection.toml")
 
 
 def read_gt(seq):
@@ -266,7 +272,9 @@ def main():
                          "{seq} stands for the sequence folder, e.g. "
                          "'--zoom-small 12 --calibration {seq}/calibration.toml'")
     ap.add_argument("--config-row", action="append", default=[],
-                    help="'name=path.toml': a background-detector row with --config path.toml")
+                    help="'name=path.toml [flags]': a background-detector row with --config "
+                         "path.toml and any flags; {seq} stands for the sequence folder, e.g. "
+                         "'peds=p.toml --calibration {seq}/calibration.toml'")
     ap.add_argument("--only-cnn", action="store_true",
                     help="only the learned detector's rows (no background detectors, no OpenCV)")
     a = ap.parse_args()
@@ -290,10 +298,14 @@ def main():
                 ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
                 ("pedestrians config", ["--config", PEDESTRIANS_CONFIG,
                                         "--calibration", f"{seq}/calibration.toml"]),
-            ] + [(row.split("=", 1)[0], ["--config", row.split("=", 1)[1]])
+                ("intersection config", ["--config", INTERSECTION_CONFIG,
+                                         "--calibration", f"{seq}/calibration.toml"]),
+            ] + [(row.split("=", 1)[0],
+                  ["--config", *row.split("=", 1)[1].replace("{seq}", seq).split()])
                  for row in a.config_row]:
                 out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
-                if name not in ("median (old)", "default", "default + split", "pedestrians config"):
+                if name not in ("median (old)", "default", "default + split", "pedestrians config",
+                                "intersection config"):
                     out = f"{seq}/det_row_{''.join(c if c.isalnum() else '_' for c in name)}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
                 runs[name] = read_ours(out)

@@ -317,7 +317,39 @@ fn fuzz_point_filter_config() {
 }
 
 fn background(cases: u32) {
-    fuzz_config::<BackgroundDetectorConfig>("background", cases, &[], |c| c.validate(), &[]);
+    let people = committed("detect-pedestrians.toml");
+    let mixed = committed("detect-intersection.toml");
+    fuzz_config::<BackgroundDetectorConfig>(
+        "background",
+        cases,
+        &[&people, &mixed],
+        |c| c.validate(),
+        &[],
+    );
+}
+
+/// The committed detector configs load, validate and differ from the default where they
+/// say they do.
+#[test]
+fn committed_detector_configs_load() {
+    let load = |name: &str| -> BackgroundDetectorConfig {
+        let c: BackgroundDetectorConfig =
+            toml::from_str(&committed(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+        c.validate()
+            .unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+        c
+    };
+    let (people, mixed) = (
+        load("detect-pedestrians.toml"),
+        load("detect-intersection.toml"),
+    );
+    let default = BackgroundDetectorConfig::default();
+    assert!(people.split.columns && people.regions.age_gap_s == 0.0);
+    assert_eq!(mixed.regions.min_person_share, 0.4);
+    // Everything else of the intersection config is the default's.
+    let mut rest = mixed.clone();
+    rest.regions.min_person_share = default.regions.min_person_share;
+    assert_eq!(rest, default);
 }
 
 /// 2 000 cases.
