@@ -77,9 +77,9 @@ pub struct BackgroundDetector {
     splitter: Option<Splitter>,
     /// For `regions.min_person_share`, when it is set and there is a calibration.
     person: Option<PersonSize>,
-    /// The region settings regions are extracted with: `config.regions` with the area
-    /// floor lowered to `person_min_area_px` when `person` is there (the rest of the floor
-    /// is applied with the person share, [`Self::keep`]).
+    /// The region settings regions are extracted (and ghosts looked for) with:
+    /// `config.regions` with the area floor lowered to `person_min_area_px` when `person`
+    /// is there (the rest of the floor is applied with the person share, [`person_sized`]).
     extract: super::regions::RegionConfig,
     /// How long each pixel has been foreground, for `regions.age_gap_s`.
     ages: super::age_cut::AgeMap,
@@ -174,7 +174,7 @@ impl BackgroundDetector {
             &mut mask,
             &frame.image,
             frame.time_s,
-            self.config.regions.min_area_px,
+            self.extract.min_area_px,
         );
         self.model
             .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
@@ -343,26 +343,36 @@ mod tests {
         Ok(())
     }
 
+    /// A row far from the pinhole test camera where a standing person's box is 30–50 px²,
+    /// and that person's box width and height there, px.
+    fn far_person(cal: &crate::calibration::Calibration) -> (u32, u32, u32) {
+        let person = PersonSize::new(cal.clone(), 640, 480);
+        let at = |y: u32| person.box_area_px(crate::geometry::Point::new(300.0, f64::from(y)));
+        let foot_y = (0..480u32)
+            .rev()
+            .find(|&y| at(y).is_some_and(|a| (30.0..=50.0).contains(&a)))
+            .expect("a far row");
+        let h = (at(foot_y).expect("far row") / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
+        (foot_y, (0.4 * h).round() as u32, h.round() as u32)
+    }
+
     /// A far person, a region of fewer pixels than `min_area_px` but person-sized for where
     /// it stands, is kept with the person share on (its floor `person_min_area_px`); a speck
     /// as small where no person size is known (above the horizon) is not.
     #[test]
     fn a_far_person_under_the_area_floor_is_kept_by_the_person_share() -> Result<()> {
         let (cal, _) = crate::detect::split::tests::pinhole();
-        let person = PersonSize::new(cal.clone(), 640, 480);
-        let at = |y: u32| person.box_area_px(crate::geometry::Point::new(300.0, f64::from(y)));
-        // The lowest image row where a person's box is 30–50 px² (far away), and a row
-        // above the horizon (no size known).
-        let foot_y = (0..480u32)
-            .rev()
-            .find(|&y| at(y).is_some_and(|a| (30.0..=50.0).contains(&a)))
-            .expect("a far row");
-        let sky_y = (0..480u32)
-            .find(|&y| at(y).is_none())
-            .expect("a row above the horizon");
-        let h = (at(foot_y).expect("far row") / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
-        let (pw, ph) = ((0.4 * h).round() as u32, h.round() as u32);
+        let (foot_y, pw, ph) = far_person(&cal);
         assert!(pw * ph < 60, "{pw} × {ph}");
+        // A row above the horizon: no person size known there.
+        let person = PersonSize::new(cal.clone(), 640, 480);
+        let sky_y = (0..480u32)
+            .find(|&y| {
+                person
+                    .box_area_px(crate::geometry::Point::new(300.0, f64::from(y)))
+                    .is_none()
+            })
+            .expect("a row above the horizon");
         let frames = frames_at_10_fps(20, |i| {
             let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
             for (x0, foot) in [(100 + 2 * i, foot_y), (400 + 2 * i, sky_y + ph)] {
@@ -385,6 +395,44 @@ mod tests {
         assert!(run(0)?.iter().all(|&n| n == 0), "both under min_area_px");
         let on = run(20)?;
         assert!(on.iter().all(|&n| n == 1), "the far person kept: {on:?}");
+        Ok(())
+    }
+
+    /// The ghost of a far person (one who stood through the start-up and then left) is
+    /// under `min_area_px` but above `person_min_area_px`: with the person share on it is
+    /// a region, and the ghost test, which looks at regions down to the same floor, drops
+    /// it after `ghost_still_s`.
+    #[test]
+    fn a_far_persons_ghost_under_the_area_floor_is_dropped() -> Result<()> {
+        let (cal, _) = crate::detect::split::tests::pinhole();
+        let (foot_y, pw, ph) = far_person(&cal);
+        let road = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
+        let mut standing = road.clone();
+        for y in foot_y - ph..foot_y {
+            for x in 300..300 + pw {
+                standing.put_pixel(x, y, Rgb([200, 60, 40]));
+            }
+        }
+        // Four start-up samples of five with the person: the background holds them.
+        let boot = [&standing, &standing, &road, &standing, &standing].map(|i| i.clone());
+        let run = |ghost_edge_ratio: f64| -> Result<Vec<usize>> {
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.min_person_share = 0.4;
+            cfg.background.ghost_edge_ratio = ghost_edge_ratio;
+            cfg.calibration = Some(Box::new(cal.clone()));
+            let mut det = BackgroundDetector::new(cfg, &boot)?;
+            frames_at_10_fps(20, |_| road.clone())
+                .iter()
+                .map(|f| Ok(det.detect(f)?.len()))
+                .collect()
+        };
+        assert!(
+            run(0.0)?.iter().all(|&n| n == 1),
+            "the ghost stays without the test"
+        );
+        let on = run(0.5)?;
+        assert_eq!(on[0], 1, "a region at first: {on:?}");
+        assert!(on[10..].iter().all(|&n| n == 0), "then dropped: {on:?}");
         Ok(())
     }
 

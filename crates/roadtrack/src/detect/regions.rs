@@ -29,8 +29,9 @@ pub struct RegionConfig {
     pub min_person_share: f64,
     /// With `min_person_share` on and a person size known at a region's foot point, the
     /// smallest region kept there, px², in place of `min_area_px`: the share decides, and
-    /// this floor only drops specks. Elsewhere (no calibration, a nadir one, a foot point
-    /// off the ground) `min_area_px` applies. Default 20; 0 keeps `min_area_px` everywhere.
+    /// this floor only drops specks. The ghost test looks at regions down to it too.
+    /// Elsewhere (no calibration, a nadir one, a foot point off the ground) `min_area_px`
+    /// applies. Default 20; 0 keeps `min_area_px` everywhere.
     ///
     /// Choice: 20. A fixed `min_area_px` of 60 dropped most of the far pedestrians of the
     /// simulator's oblique intersection (their boxes 31–72 px², median 44, for 1 716 of
