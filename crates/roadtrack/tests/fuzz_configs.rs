@@ -346,9 +346,11 @@ fn committed_detector_configs_load() {
     let default = BackgroundDetectorConfig::default();
     assert!(people.split.columns && people.regions.age_gap_s == 0.0);
     assert_eq!(mixed.regions.min_person_share, 0.4);
+    assert_eq!(people.regions.person_min_area_px, 20);
     // Everything else of the intersection config is the default's.
     let mut rest = mixed.clone();
-    rest.regions.min_person_share = default.regions.min_person_share;
+    rest.regions.person_min_area_px = default.regions.person_min_area_px;
+    assert_ne!(rest.regions.person_min_area_px, 20);
     assert_eq!(rest, default);
 }
 

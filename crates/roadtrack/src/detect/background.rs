@@ -47,9 +47,10 @@ impl BackgroundDetectorConfig {
     }
 
     /// The same config with the detector's later additions off (median start-up, no
-    /// shadow suppression, no hold, no ghost suppression, no splitting, no age cut, centroid
-    /// as the centre): the detector `--as-published` runs use.
+    /// shadow suppression, no hold, no ghost suppression, no splitting, no age cut, no
+    /// person share, centroid as the centre): the detector `--as-published` runs use.
     pub fn as_published(mut self) -> Self {
+        self.regions.min_person_share = 0.0;
         self.background = self.background.as_published();
         self.split.enabled = false;
         self.split.columns = false;
@@ -340,6 +341,18 @@ mod tests {
         assert!(run(0.0)?.iter().all(|&n| n == 2), "both kept when off");
         let on = run(0.25)?;
         assert!(on.iter().all(|&n| n == 1), "only the person kept: {on:?}");
+        // On by default; off as published.
+        let cfg = BackgroundDetectorConfig {
+            calibration: Some(Box::new(cal.clone())),
+            ..Default::default()
+        };
+        let default = detections_per_frame(cfg.clone(), &frames)?;
+        assert!(default.iter().all(|&n| n == 1), "default: {default:?}");
+        let published = detections_per_frame(cfg.as_published(), &frames)?;
+        assert!(
+            published.iter().all(|&n| n == 2),
+            "as published: {published:?}"
+        );
         Ok(())
     }
 
@@ -418,6 +431,7 @@ mod tests {
         let run = |ghost_edge_ratio: f64| -> Result<Vec<usize>> {
             let mut cfg = BackgroundDetectorConfig::default();
             cfg.regions.min_person_share = 0.4;
+            cfg.regions.person_min_area_px = 20;
             cfg.background.ghost_edge_ratio = ghost_edge_ratio;
             cfg.calibration = Some(Box::new(cal.clone()));
             let mut det = BackgroundDetector::new(cfg, &boot)?;

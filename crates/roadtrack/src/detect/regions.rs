@@ -22,21 +22,28 @@ pub struct RegionConfig {
     /// Smallest region kept as a share of the box a standing person would have at the
     /// region's foot point (the middle of its box's bottom edge), from the calibration's
     /// camera ([`super::split::PersonSize`]). Drops the pieces of a person (a head or legs
-    /// beside a post) and small ghosts, at any distance from the camera. Needs a calibration
-    /// that sees heights (an oblique one, `--calibration`); without one it does nothing.
-    /// Default 0 (off); `configs/detect-pedestrians.toml` and
-    /// `configs/detect-intersection.toml` set 0.4.
+    /// beside a post), pieces of vehicles and small ghosts, at any distance from the
+    /// camera. Needs a calibration that sees heights (an oblique one, `--calibration`);
+    /// without one it does nothing. Default 0.4; `--as-published` 0 (off).
+    ///
+    /// Choice: on by default since it only acts with a calibration and, on the simulator's
+    /// oblique scenes (seeds 0–2, docs/EXPERIMENTS.md "Far pedestrians"), it left every
+    /// recall as it was and raised every precision or kept it (oblique road 0.64–0.75 →
+    /// 0.65–0.76, intersection 0.50–0.78 → 0.56–0.84, crossing 0.43–0.49 → 0.55–0.62).
+    /// Under 0.5, because a box under half a person's cannot match that person at IoU 0.5.
     pub min_person_share: f64,
     /// With `min_person_share` on and a person size known at a region's foot point, the
     /// smallest region kept there, px², in place of `min_area_px`: the share decides, and
     /// this floor only drops specks. The ghost test looks at regions down to it too.
     /// Elsewhere (no calibration, a nadir one, a foot point off the ground) `min_area_px`
-    /// applies. Default 20; 0 keeps `min_area_px` everywhere.
+    /// applies. Default 0 (`min_area_px` everywhere); `configs/detect-pedestrians.toml` and
+    /// `configs/detect-intersection.toml` set 20.
     ///
-    /// Choice: 20. A fixed `min_area_px` of 60 dropped most of the far pedestrians of the
-    /// simulator's oblique intersection (their boxes 31–72 px², median 44, for 1 716 of
-    /// 2 428 missed on seed 2); the person share already drops what is small for where it
-    /// stands (docs/EXPERIMENTS.md "Far pedestrians").
+    /// Choice: 20 in those configs, not by default. A fixed `min_area_px` of 60 dropped
+    /// most of the far pedestrians of the simulator's oblique intersection (their boxes
+    /// 31–72 px², median 44, for 1 716 of 2 428 missed on seed 2), but on the oblique road,
+    /// which has no one to find, 20 keeps small pieces of vehicles (precision 0.75 → 0.71,
+    /// seed 0; docs/EXPERIMENTS.md "Far pedestrians").
     pub person_min_area_px: u32,
     /// Where a detection's centre is: `"box"` (the middle of the region's tight box, so
     /// that centre ± size / 2 is that box) or `"centroid"` (the mean of its pixels, seed
@@ -85,8 +92,8 @@ impl Default for RegionConfig {
             close_radius_px: 3,
             min_area_px: 60,
             max_area_px: 50_000,
-            min_person_share: 0.0,
-            person_min_area_px: 20,
+            min_person_share: 0.4,
+            person_min_area_px: 0,
             position: RegionPosition::Box,
             age_gap_s: 2.0,
             age_grace_s: 0.3,
