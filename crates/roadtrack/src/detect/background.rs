@@ -386,6 +386,13 @@ mod tests {
                     .is_none()
             })
             .expect("a row above the horizon");
+        for x in [400.0, 450.0] {
+            let foot = crate::geometry::Point::new(x, f64::from(sky_y + ph));
+            assert!(
+                person.box_area_px(foot).is_none(),
+                "the speck's foot {foot:?}"
+            );
+        }
         let frames = frames_at_10_fps(20, |i| {
             let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
             for (x0, foot) in [(100 + 2 * i, foot_y), (400 + 2 * i, sky_y + ph)] {
