@@ -292,21 +292,21 @@ def main():
             gt = read_gt(seq)
             stopped = read_stopped(seq)
             runs = {}
-            for name, extra in [] if a.only_cnn else [
-                ("median (old)", ["--config", old_cfg]),
-                ("default", []),
-                ("default + split", ["--calibration", f"{seq}/calibration.toml", "--split"]),
-                ("pedestrians config", ["--config", PEDESTRIANS_CONFIG,
-                                        "--calibration", f"{seq}/calibration.toml"]),
-                ("intersection config", ["--config", INTERSECTION_CONFIG,
-                                         "--calibration", f"{seq}/calibration.toml"]),
-            ] + [(row.split("=", 1)[0],
-                  ["--config", *row.split("=", 1)[1].replace("{seq}", seq).split()])
-                 for row in a.config_row]:
-                out = f"{seq}/det_{name.split()[0]}{'_split' if 'split' in name else ''}.csv"
-                if name not in ("median (old)", "default", "default + split", "pedestrians config",
-                                "intersection config"):
-                    out = f"{seq}/det_row_{''.join(c if c.isalnum() else '_' for c in name)}.csv"
+            cal = ["--calibration", f"{seq}/calibration.toml"]
+            # (row name, file stem of its detections, flags)
+            rows = [] if a.only_cnn else [
+                ("median (old)", "median", ["--config", old_cfg]),
+                ("default", "default", []),
+                ("default + split", "default_split", [*cal, "--split"]),
+                ("pedestrians config", "pedestrians", ["--config", PEDESTRIANS_CONFIG, *cal]),
+                ("intersection config", "intersection", ["--config", INTERSECTION_CONFIG, *cal]),
+            ]
+            for row in [] if a.only_cnn else a.config_row:
+                name, spec = row.split("=", 1)
+                rows.append((name, "row_" + "".join(c if c.isalnum() else "_" for c in name),
+                             ["--config", *spec.replace("{seq}", seq).split()]))
+            for name, stem, extra in rows:
+                out = f"{seq}/det_{stem}.csv"
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, *extra], check=True)
                 runs[name] = read_ours(out)
             if a.cnn_model:
