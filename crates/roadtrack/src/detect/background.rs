@@ -262,6 +262,19 @@ mod tests {
             .collect()
     }
 
+    /// A 640 × 480 grey road with red blocks `(left, top, width, height)`, px.
+    fn road_with_blocks(blocks: &[(u32, u32, u32, u32)]) -> RgbImage {
+        let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
+        for &(x0, y0, w, h) in blocks {
+            for y in y0..y0 + h {
+                for x in x0..x0 + w {
+                    img.put_pixel(x, y, Rgb([200, 60, 40]));
+                }
+            }
+        }
+        img
+    }
+
     /// Detections per frame of a detector with `cfg`, started from all of `frames`.
     fn detections_per_frame(cfg: BackgroundDetectorConfig, frames: &[Frame]) -> Result<Vec<usize>> {
         let total = Some(frames.len() as u32);
@@ -322,15 +335,10 @@ mod tests {
         let h = (area / crate::detect::split::PERSON_WIDTH_SHARE).sqrt();
         let (pw, ph, piece) = ((0.4 * h) as u32, h as u32, (0.3 * h) as u32);
         let frames = frames_at_10_fps(20, |i| {
-            let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
-            for (x0, w, hh) in [(100 + 3 * i, pw, ph), (400 + 3 * i, piece, piece)] {
-                for y in foot_y - hh..foot_y {
-                    for x in x0..x0 + w {
-                        img.put_pixel(x, y, Rgb([200, 60, 40]));
-                    }
-                }
-            }
-            img
+            road_with_blocks(&[
+                (100 + 3 * i, foot_y - ph, pw, ph),
+                (400 + 3 * i, foot_y - piece, piece, piece),
+            ])
         });
         let run = |share: f64| -> Result<Vec<usize>> {
             let mut cfg = BackgroundDetectorConfig::default();
@@ -394,15 +402,10 @@ mod tests {
             );
         }
         let frames = frames_at_10_fps(20, |i| {
-            let mut img = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
-            for (x0, foot) in [(100 + 2 * i, foot_y), (400 + 2 * i, sky_y + ph)] {
-                for y in foot - ph..foot {
-                    for x in x0..x0 + pw {
-                        img.put_pixel(x, y, Rgb([200, 60, 40]));
-                    }
-                }
-            }
-            img
+            road_with_blocks(&[
+                (100 + 2 * i, foot_y - ph, pw, ph),
+                (400 + 2 * i, sky_y, pw, ph),
+            ])
         });
         let run = |floor: u32| -> Result<Vec<usize>> {
             let mut cfg = BackgroundDetectorConfig::default();
@@ -426,13 +429,8 @@ mod tests {
     fn a_far_persons_ghost_under_the_area_floor_is_dropped() -> Result<()> {
         let (cal, _) = crate::detect::split::tests::pinhole();
         let (foot_y, pw, ph) = far_person(&cal);
-        let road = RgbImage::from_pixel(640, 480, Rgb([90, 90, 90]));
-        let mut standing = road.clone();
-        for y in foot_y - ph..foot_y {
-            for x in 300..300 + pw {
-                standing.put_pixel(x, y, Rgb([200, 60, 40]));
-            }
-        }
+        let road = road_with_blocks(&[]);
+        let standing = road_with_blocks(&[(300, foot_y - ph, pw, ph)]);
         // Four start-up samples of five with the person: the background holds them.
         let boot = [&standing, &standing, &road, &standing, &standing].map(|i| i.clone());
         let run = |ghost_edge_ratio: f64| -> Result<Vec<usize>> {
