@@ -18,11 +18,7 @@ use roadtrack_cli::bench::cpu_seconds;
 use roadtrack_sim::{SimConfig, ViewKind, simulate_in_memory};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // `cargo bench` appends `--bench`: flags are not ours.
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
+    let args = roadtrack_cli::bench::bench_args();
     let kind = args.first().map_or("generated", String::as_str);
     let (frames, label, rest): (Vec<Frame>, String, &[String]) = if kind == "sim" {
         let scene = args.get(1).map_or("intersection", String::as_str);

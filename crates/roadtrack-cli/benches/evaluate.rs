@@ -12,13 +12,12 @@ use std::path::Path;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // `cargo bench` appends `--bench`: flags are not ours.
-    let args: Vec<String> = std::env::args().filter(|a| !a.starts_with("--")).collect();
+    let args = roadtrack_cli::bench::bench_args();
     let dir = Path::new(
-        args.get(1)
+        args.first()
             .ok_or("usage: cargo bench -p roadtrack-cli --bench evaluate -- DIR [REPS]")?,
     );
-    let reps: usize = args.get(2).map_or(Ok(5), |s| s.parse())?;
+    let reps: usize = args.get(1).map_or(Ok(5), |s| s.parse())?;
     let expected: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("expected.json"))?)?;
     let mut times = Vec::new();

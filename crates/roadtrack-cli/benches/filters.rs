@@ -8,11 +8,7 @@
 use roadtrack_cli::bench::filters::{FilterBenchConfig, bench_filters};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // `cargo bench` appends `--bench`: flags are not ours.
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
+    let args = roadtrack_cli::bench::bench_args();
     let mut cfg = FilterBenchConfig::default();
     if let Some(f) = args.first() {
         cfg.frames = f.parse()?;

@@ -18,11 +18,7 @@ use roadtrack_cli::bench::mrf::bench_mrf;
 use roadtrack_sim::{SimConfig, ViewKind, simulate_in_memory};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // `cargo bench` appends `--bench`: flags are not ours.
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
+    let args = roadtrack_cli::bench::bench_args();
     let kind = args.first().map_or("sim", String::as_str);
     let what = args.get(1).map_or("crossing", String::as_str);
     let n: u32 = args.get(2).map_or(Ok(200), |s| s.parse())?;

@@ -9,11 +9,7 @@ use roadtrack_cli::bench::sim::benchmark;
 use roadtrack_sim::SimConfig;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // `cargo bench` appends `--bench`: flags are not ours.
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
+    let args = roadtrack_cli::bench::bench_args();
     let config = SimConfig {
         scene: args.first().map_or("road", String::as_str).parse()?,
         view: args.get(1).map_or("aerial", String::as_str).parse()?,

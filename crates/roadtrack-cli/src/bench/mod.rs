@@ -108,6 +108,15 @@ pub fn decode(path: &Path, options: &SourceOptions) -> Result<(StageResult, Skip
     Ok((result, skipped))
 }
 
+/// A bench program's own arguments: those after the program's name, without the flags
+/// `cargo bench` appends (`--bench`).
+pub fn bench_args() -> Vec<String> {
+    std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect()
+}
+
 /// Runs foreground extraction over frames already in memory (decode excluded).
 pub fn detect_frames(
     label: &str,
