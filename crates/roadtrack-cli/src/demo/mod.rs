@@ -7,6 +7,8 @@
 mod report;
 mod shared_frames;
 
+use shared_frames::{FinishOnDrop, Found};
+
 use crate::common::DetectorArgs;
 use crate::overlay::OverlaySink;
 use anyhow::{Context, Result};
@@ -308,9 +310,6 @@ struct Shared<'a> {
     truth: &'a [TrackPoint],
     truth_analysis: &'a Analysis,
     background: Option<&'a image::RgbImage>,
-    /// The detections of a detector that looks at each frame alone, found once and given
-    /// to every method ([`detect_once`]); `None`: each method runs its detector.
-    detections: Option<std::sync::Arc<[FrameDetections]>>,
 }
 
 /// Runs the demo into `dir`; `step` is told what is being done.
@@ -339,13 +338,8 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         None => demo_relaxation()?,
     };
     let filters = demo_filters()?;
-    let detect_t0 = std::time::Instant::now();
-    let detections = detect_once(cfg, &seq, step)?;
-    let detect_seconds = detections
-        .as_ref()
-        .map(|_| detect_t0.elapsed().as_secs_f64());
+    let detector = shared_detector(cfg, &seq)?;
     let shared = Shared {
-        detections: detections.map(std::sync::Arc::from),
         cfg,
         relaxation: &relaxation,
         filters: &filters,
@@ -358,7 +352,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         truth_analysis: &truth_analysis,
         background: background.as_ref(),
     };
-    let mut runs = run_methods(&shared, step)?;
+    let (mut runs, detect_seconds) = run_methods(&shared, detector, step)?;
     // Best first. Choice: ties in HOTA keep the papers' order (a stable sort).
     runs.sort_by(|a, b| b.0.result.hota.total_cmp(&a.0.result.hota));
     // Choice: only the best method's overlay is rendered whole (as a video, or PNG frames);
@@ -417,17 +411,15 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
     })
 }
 
-/// With `--detector cnn` or `onnx` (no motion gate): runs the detector once over the
-/// sequence, its frames spread over the threads, and returns every frame's detections.
-/// `None` for the other detectors: a background model or a motion gate takes each
+/// With `--detector cnn` or `onnx` (no motion gate): the detector to run once for every
+/// method. `None` for the other detectors: a background model or a motion gate takes each
 /// method's own background settings, and a detections file costs nothing to reread.
 // Choice: the learned detector is most of the demo's compute; it looks at each frame
 // alone, so the four methods get the same detections whether it runs four times or once.
-fn detect_once(
+fn shared_detector(
     cfg: &DemoConfig,
     seq: &Path,
-    step: &mut dyn FnMut(&str),
-) -> Result<Option<Vec<FrameDetections>>> {
+) -> Result<Option<Box<dyn roadtrack::detect::Detector>>> {
     use crate::common::DetectorArg;
     if !matches!(
         cfg.detector.detector,
@@ -436,8 +428,6 @@ fn detect_once(
     {
         return Ok(None);
     }
-    let name = crate::common::detector_name(&cfg.detector);
-    step(&format!("detecting with {name} (once, for every method)"));
     // Not called: neither detector nor the absent gate needs background settings.
     let Some(spec) = cfg
         .detector
@@ -448,70 +438,114 @@ fn detect_once(
     };
     let options = SourceOptions::default();
     let info = source::open(seq, &options)?.info.clone();
-    let mut detector = spec.build(seq, &options, &info)?;
-    let mut frames = source::open(seq, &options)?;
-    let total = info
-        .selected_frames
-        .map_or(String::new(), |n| format!(" of {n}"));
-    let mut batch = Vec::new();
-    let mut out = Vec::new();
-    while roadtrack::detect::next_batch(&mut frames, detector.batch_len(), &mut batch)? {
-        out.extend(roadtrack::detect::detect_checked(
-            detector.as_mut(),
-            &batch,
-        )?);
-        step(&format!(
-            "detecting with {name} (once, for every method): {} frames{total}",
-            out.len()
-        ));
-    }
-    Ok(Some(out))
+    Ok(Some(spec.build(seq, &options, &info)?))
 }
 
-/// [`detect_once`]'s detections given back frame by frame, in order (a closure is a
-/// [`roadtrack::detect::Detector`]).
+/// Runs `detector` over `frames`, a batch of frames over the threads at a time (at most
+/// [`shared_frames::AHEAD`]: see there), adding each batch's detections to `found`; `step`
+/// is told the count. `found` is ended either way.
+fn detect_into(
+    detector: &mut dyn roadtrack::detect::Detector,
+    mut frames: impl Iterator<Item = roadtrack::Result<roadtrack::Frame>>,
+    found: &Found,
+    step: &mut dyn FnMut(usize),
+) -> roadtrack::Result<()> {
+    let guard = FinishOnDrop(found);
+    let len = detector.batch_len().clamp(1, shared_frames::AHEAD);
+    let mut batch = Vec::new();
+    let result = (|| {
+        while roadtrack::detect::next_batch(&mut frames, len, &mut batch)? {
+            found.push(roadtrack::detect::detect_checked(detector, &batch)?);
+            step(found.len());
+        }
+        Ok(())
+    })();
+    guard.done(&result);
+    result
+}
+
+/// The detections in `found` given back frame by frame, in order, each once found (a
+/// closure is a [`roadtrack::detect::Detector`]).
 fn replay(
-    found: std::sync::Arc<[FrameDetections]>,
+    found: std::sync::Arc<Found>,
 ) -> impl FnMut(&roadtrack::frame::Frame) -> roadtrack::Result<FrameDetections> {
     let mut next = 0;
     move |frame: &roadtrack::frame::Frame| {
         next += 1;
-        found.get(next - 1).cloned().ok_or_else(|| {
-            roadtrack::Error::Invalid(format!(
-                "internal error: no detections kept for frame {}",
-                frame.index
-            ))
+        found.get(next - 1).map_err(|e| match e {
+            roadtrack::Error::Invalid(m) => {
+                roadtrack::Error::Invalid(format!("frame {}: {m}", frame.index))
+            }
+            e => e,
         })
     }
 }
 
 /// Runs every method, all four at once, each on its own thread, fed the frames by one
-/// reader; the results in the papers' order whatever order they finish in.
+/// reader; with a detector shared by all ([`shared_detector`]), runs it on this thread
+/// beside them, on frames from the same reader. The results in the papers' order whatever
+/// order they finish in, and the detector's wall time.
 // Choice: the methods are independent, each with its own seed, and each sees every frame
 // in order, so running them side by side changes no output. All four at once, whatever the
 // cores, so that the frames are decoded once for all of them (shared_frames): decoding was
-// a third to a half of each method's CPU (docs/PERFORMANCE.md "Demo").
-fn run_methods(sh: &Shared<'_>, step: &mut dyn FnMut(&str)) -> Result<Vec<Ran>> {
+// a third to a half of each method's CPU (docs/PERFORMANCE.md "Demo"). The detector runs
+// beside them, not before: it left a third of the two cores idle between its batches, and
+// the methods fill them (docs/PERFORMANCE.md "Demo").
+fn run_methods(
+    sh: &Shared<'_>,
+    detector: Option<Box<dyn roadtrack::detect::Detector>>,
+    step: &mut dyn FnMut(&str),
+) -> Result<(Vec<Ran>, Option<f64>)> {
     let all = methods();
-    step(&format!(
-        "tracking with {}, side by side",
-        all.map(|m| m.name()).join(", ")
-    ));
+    let names = all.map(|m| m.name()).join(", ");
+    step(&format!("tracking with {names}, side by side"));
+    let found = detector
+        .as_ref()
+        .map(|_| std::sync::Arc::new(Found::default()));
     let frames = source::open(sh.seq, &SourceOptions::default())?;
-    let (senders, receivers) = shared_frames::channels(all.len());
-    let done: Vec<Result<Ran>> = std::thread::scope(|scope| {
+    let total = frames
+        .info
+        .selected_frames
+        .map_or(String::new(), |n| format!(" of {n}"));
+    let (mut senders, mut receivers) = shared_frames::channels(all.len() + 1);
+    let detector_frames = receivers.pop();
+    if detector.is_none() {
+        senders.pop();
+    }
+    let (done, detected) = std::thread::scope(|scope| {
         scope.spawn(move || shared_frames::broadcast(frames, senders));
         let handles: Vec<_> = all
             .iter()
             .zip(receivers)
-            .map(|(&method, frames)| scope.spawn(move || run_method(sh, method, frames)))
+            .map(|(&method, frames)| {
+                let found = found.clone();
+                scope.spawn(move || run_method(sh, method, frames, found))
+            })
             .collect();
-        handles
+        let detected = match (detector, &found, detector_frames) {
+            (Some(mut detector), Some(found), Some(frames)) => {
+                let name = crate::common::detector_name(&sh.cfg.detector);
+                let t0 = std::time::Instant::now();
+                let result = detect_into(detector.as_mut(), frames.into_iter(), found, &mut |n| {
+                    step(&format!(
+                        "detecting with {name} (once, for every method) and tracking with \
+                         {names}: {n} frames{total}"
+                    ));
+                });
+                step(&format!("tracking with {names}, side by side"));
+                Some(result.map(|()| t0.elapsed().as_secs_f64()))
+            }
+            _ => None,
+        };
+        let done: Vec<Result<Ran>> = handles
             .into_iter()
             .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
+            .collect();
+        (done, detected)
     });
-    done.into_iter().collect()
+    // The detector's error first: the methods fail with it too, with less context.
+    let detect_seconds = detected.transpose().context("the demo's detector")?;
+    Ok((done.into_iter().collect::<Result<_>>()?, detect_seconds))
 }
 
 /// A method's run and its points.
@@ -523,6 +557,7 @@ fn run_method(
     sh: &Shared<'_>,
     method: Method,
     frames: std::sync::mpsc::Receiver<roadtrack::Result<roadtrack::Frame>>,
+    found: Option<std::sync::Arc<Found>>,
 ) -> Result<Ran> {
     let cfg = sh.cfg;
     let name = method.name();
@@ -547,9 +582,9 @@ fn run_method(
     }
     .with_calibration(sh.calibration);
     let own = config.background_detector();
-    let detector = match &sh.detections {
+    let detector = match found {
         Some(found) => Some(roadtrack::detect::DetectorSpec::Given(Box::new(replay(
-            std::sync::Arc::clone(found),
+            found,
         )))),
         None => cfg
             .detector
@@ -758,8 +793,9 @@ mod tests {
     }
 
     /// One whole signal cycle fits the default demo.
-    /// `--detector cnn`: the detections found once are what each method's own detector
-    /// finds, frame by frame; the background detector is not shared.
+    /// `--detector cnn`: the detections found once, beside the readers, are what each
+    /// method's own detector finds, frame by frame, whichever runs ahead; the background
+    /// detector is not shared.
     #[cfg(feature = "cnn")]
     #[test]
     fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
@@ -775,25 +811,88 @@ mod tests {
             },
             ..Default::default()
         };
-        let found = detect_once(&cfg, &seq, &mut |_| {})?.context("cnn runs once")?;
-        let spec = cfg
-            .detector
-            .spec(&seq, None, || Ok(Default::default()))?
-            .context("a detector")?;
         let options = SourceOptions::default();
-        let info = source::open(&seq, &options)?.info.clone();
-        let mut own = spec.build(&seq, &options, &info)?;
-        let mut replayed = replay(found.clone().into());
-        let mut last = None;
-        for frame in source::open(&seq, &options)? {
-            let frame = frame?;
-            assert_eq!(replayed.detect(&frame)?, own.detect(&frame)?);
-            last = Some(frame);
-        }
+        let mut shared = shared_detector(&cfg, &seq)?.context("cnn runs once")?;
+        let found = std::sync::Arc::new(Found::default());
+        // The reader starts first and waits for every frame.
+        let reader = {
+            let found = std::sync::Arc::clone(&found);
+            let seq = seq.clone();
+            let cfg = cfg.clone();
+            let options = options.clone();
+            std::thread::spawn(move || -> Result<usize> {
+                let spec = cfg
+                    .detector
+                    .spec(&seq, None, || Ok(Default::default()))?
+                    .context("a detector")?;
+                let info = source::open(&seq, &options)?.info.clone();
+                let mut own = spec.build(&seq, &options, &info)?;
+                let mut replayed = replay(found);
+                let mut last = None;
+                let mut boxes = 0;
+                for frame in source::open(&seq, &options)? {
+                    let frame = frame?;
+                    let got = replayed.detect(&frame)?;
+                    assert_eq!(got, own.detect(&frame)?, "frame {}", frame.index);
+                    boxes += got.detections.len();
+                    last = Some(frame);
+                }
+                // Past the last frame: an error, not a wait.
+                assert!(replayed.detect(&last.context("frames")?).is_err());
+                Ok(boxes)
+            })
+        };
+        detect_into(
+            shared.as_mut(),
+            source::open(&seq, &options)?,
+            &found,
+            &mut |_| {},
+        )?;
+        let boxes = reader
+            .join()
+            .map_err(|_| anyhow::anyhow!("the reader panicked"))??;
         assert_eq!(found.len(), 12);
-        assert!(found.iter().any(|f| !f.detections.is_empty()));
-        assert!(replayed.detect(&last.context("frames")?).is_err());
-        assert!(detect_once(&DemoConfig::default(), &seq, &mut |_| {})?.is_none());
+        assert!(boxes > 0);
+        assert!(shared_detector(&DemoConfig::default(), &seq)?.is_none());
+        Ok(())
+    }
+
+    /// A detector that fails ends the detections: a method waiting for them gets the
+    /// detector's message, not a wait without end.
+    #[test]
+    fn a_failing_detector_releases_the_methods_waiting_for_it() -> Result<()> {
+        let found = std::sync::Arc::new(Found::default());
+        let waiting = {
+            let found = std::sync::Arc::clone(&found);
+            std::thread::spawn(move || {
+                let mut replayed = replay(found);
+                let frame = roadtrack::Frame {
+                    index: 1,
+                    time_s: 0.0,
+                    image: image::RgbImage::new(4, 4),
+                };
+                replayed(&frame)
+            })
+        };
+        let mut failing = |_: &roadtrack::Frame| -> roadtrack::Result<FrameDetections> {
+            Err(roadtrack::Error::Invalid("model.onnx: bad output".into()))
+        };
+        let frames = (1..=3).map(|index| {
+            Ok(roadtrack::Frame {
+                index,
+                time_s: 0.0,
+                image: image::RgbImage::new(4, 4),
+            })
+        });
+        assert!(detect_into(&mut failing, frames, &found, &mut |_| {}).is_err());
+        let got = waiting
+            .join()
+            .map_err(|_| anyhow::anyhow!("the reader panicked"))?;
+        let message = got.err().context("an error")?.to_string();
+        assert!(
+            message.contains("frame 1") && message.contains("bad output"),
+            "{message}"
+        );
         Ok(())
     }
 

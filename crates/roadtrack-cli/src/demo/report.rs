@@ -124,8 +124,8 @@ pub(super) fn page(facts: &Facts, truth: &Analysis, runs: &[MethodRun]) -> Strin
     };
     let detector = match (facts.detector_given, facts.detect_seconds) {
         (true, Some(t)) => format!(
-            "`{}`{default}, run once for every method ({t:.1} s; the methods' times below \
-             leave it out)",
+            "`{}`{default}, run once for every method, beside them ({t:.1} s; the methods' \
+             times below include their waits for it)",
             facts.detector_flags
         ),
         (true, None) => format!("`{}`{default}", facts.detector_flags),

@@ -3,12 +3,18 @@
 //! Each method would otherwise decode the 700 JPEG frames itself: about half of the
 //! relaxation run's CPU and a third of the MRF's (perf, dev profile). One thread reads the
 //! source once and hands every frame, in order, to each method through a bounded channel.
+//! A detector that looks at each frame alone runs once for all of them beside the methods,
+//! on frames from the same reader, and hands its detections on through [`Found`].
 
 use roadtrack::Frame;
+use roadtrack::detect::FrameDetections;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
-/// Frames a method may run behind the reader before the reader waits for it.
-const AHEAD: usize = 8;
+/// Frames a method may run behind the reader before the reader waits for it. A reader of
+/// the frames that waits for [`Found`] must take at most this many frames at a time, or
+/// the reader, waiting for a method that waits for detections, never sends it the rest.
+pub const AHEAD: usize = 8;
 
 /// `n` channels: the senders for [`broadcast`], a receiver for each method.
 pub type Channels = (
@@ -55,6 +61,99 @@ pub fn broadcast(
                 return;
             }
         }
+    }
+}
+
+/// Detections found frame by frame by one thread and read, each in frame order, by
+/// others, which wait for the frames not found yet.
+#[derive(Default)]
+pub struct Found {
+    state: Mutex<FoundState>,
+    more: Condvar,
+}
+
+#[derive(Default)]
+struct FoundState {
+    frames: Vec<FrameDetections>,
+    /// `None` while detections may still come; `Some(None)`: all found; `Some(Some(e))`:
+    /// the detector failed with `e`.
+    end: Option<Option<String>>,
+}
+
+impl Found {
+    fn state(&self) -> MutexGuard<'_, FoundState> {
+        // A panicking reader leaves the detections whole: the state is only appended to.
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Adds the next frames' detections.
+    pub fn push(&self, frames: Vec<FrameDetections>) {
+        self.state().frames.extend(frames);
+        self.more.notify_all();
+    }
+
+    /// Marks the end: every frame's detections are in, or (`error`) no more will come.
+    /// Only the first end counts.
+    pub fn finish(&self, error: Option<String>) {
+        let mut state = self.state();
+        if state.end.is_none() {
+            state.end = Some(error);
+        }
+        drop(state);
+        self.more.notify_all();
+    }
+
+    /// The detections of the `k`-th frame found (from 0), once found.
+    ///
+    /// # Errors
+    /// The detector's message when it failed first; an internal error when all were found
+    /// and there is no `k`-th.
+    pub fn get(&self, k: usize) -> roadtrack::Result<FrameDetections> {
+        let mut state = self.state();
+        loop {
+            if let Some(found) = state.frames.get(k) {
+                return Ok(found.clone());
+            }
+            match &state.end {
+                Some(Some(error)) => return Err(roadtrack::Error::Invalid(error.clone())),
+                Some(None) => {
+                    return Err(roadtrack::Error::Invalid(format!(
+                        "internal error: no detections kept for the {}th frame",
+                        k + 1
+                    )));
+                }
+                None => {
+                    state = self
+                        .more
+                        .wait(state)
+                        .unwrap_or_else(PoisonError::into_inner)
+                }
+            }
+        }
+    }
+
+    /// How many frames' detections are in.
+    pub fn len(&self) -> usize {
+        self.state().frames.len()
+    }
+}
+
+/// Ends a [`Found`] as failed when dropped before [`FinishOnDrop::done`]: a detector that
+/// stops early (an error, a panic) must not leave its readers waiting.
+pub struct FinishOnDrop<'a>(pub &'a Found);
+
+impl FinishOnDrop<'_> {
+    /// Ends the detections with `result`'s error, if any.
+    pub fn done<T>(self, result: &roadtrack::Result<T>) {
+        self.0
+            .finish(result.as_ref().err().map(ToString::to_string));
+        std::mem::forget(self);
+    }
+}
+
+impl Drop for FinishOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.finish(Some("the demo's detector stopped".into()));
     }
 }
 
