@@ -118,9 +118,24 @@ pub fn encode_frame(step: &SimStep, config: &SimConfig) -> Result<Vec<u8>> {
     let img = &step.frame.image;
     let res = match config.image_format {
         ImageFormat::Jpeg => {
-            let mut enc =
-                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, config.jpeg_quality);
-            enc.encode_image(img)
+            // Choice: jpeg-encoder rather than image's encoder, 1.7 times as fast (half the
+            // simulator's CPU was JPEG encoding). Same standard tables and quality scaling,
+            // and 4:4:4 as image's encoder wrote, so the frames differ from before only by
+            // the DCT's rounding (docs/SIMULATOR.md "Speed").
+            let (w, h) = img.dimensions();
+            let (Ok(w), Ok(h)) = (u16::try_from(w), u16::try_from(h)) else {
+                return Err(Error::Invalid(format!(
+                    "frame {}: {w} × {h} px is beyond JPEG's 65 535 px a side",
+                    step.frame.index
+                )));
+            };
+            let mut enc = jpeg_encoder::Encoder::new(&mut bytes, config.jpeg_quality);
+            enc.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
+            enc.encode(img.as_raw(), w, h, jpeg_encoder::ColorType::Rgb)
+                .map_err(|e| {
+                    Error::Invalid(format!("frame {}: JPEG encoding: {e}", step.frame.index))
+                })?;
+            Ok(())
         }
         ImageFormat::Png => {
             let enc = image::codecs::png::PngEncoder::new_with_quality(
