@@ -141,6 +141,42 @@ pub fn draw_label(
     (w, h)
 }
 
+/// The label [`draw_label`] draws, on its own: the filled rectangle with the text in it, to
+/// be copied into frames with [`paste_tile`]. Laying the glyphs out and rasterising them
+/// is most of a label's cost, and a track's label repeats frame after frame.
+pub fn label_tile(font: &FontRef<'_>, height_px: f32, text: &str, background: Rgb<u8>) -> RgbImage {
+    let (tw, th) = label_size(font, height_px, text);
+    let mut tile = RgbImage::from_pixel(tw + 4, th + 2, background);
+    draw_text_mut(
+        &mut tile,
+        text_colour_on(background),
+        2,
+        1,
+        PxScale::from(height_px),
+        font,
+        text,
+    );
+    tile
+}
+
+/// Copies `tile` into `image` with its top-left corner at `(x, y)`, clipped to the image.
+pub fn paste_tile(image: &mut RgbImage, tile: &RgbImage, (x, y): (i32, i32)) {
+    let (iw, ih) = (i64::from(image.width()), i64::from(image.height()));
+    let (tw, th) = (i64::from(tile.width()), i64::from(tile.height()));
+    let (x, y) = (i64::from(x), i64::from(y));
+    let (x0, x1) = (x.max(0), (x + tw).min(iw));
+    if x0 >= x1 {
+        return;
+    }
+    let span = 3 * (x1 - x0) as usize;
+    for row in y.max(0)..(y + th).min(ih) {
+        let from = 3 * (((row - y) * tw + (x0 - x)) as usize);
+        let to = 3 * ((row * iw + x0) as usize);
+        let (src, dst): (&[u8], &mut [u8]) = (tile.as_raw(), image.as_mut());
+        dst[to..to + span].copy_from_slice(&src[from..from + span]);
+    }
+}
+
 /// Draws a polyline through `points` whose opacity varies per segment: segment `i` (from
 /// `points[i]` to `points[i + 1]`) gets `alphas[i]`. Lines are `width_px` wide. Each pixel
 /// is blended once with the largest opacity of any segment covering it, so overlapping
@@ -267,6 +303,50 @@ mod tests {
             .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 100)
             .count();
         assert!(dark > 5, "{dark} dark pixels");
+        Ok(())
+    }
+
+    /// A label drawn once as a tile and pasted is the label drawn in place, pixel for
+    /// pixel, over any frame, wherever it lands (clipped at every edge).
+    #[test]
+    fn a_pasted_label_tile_is_the_label_drawn_in_place() -> Result<()> {
+        let f = font()?;
+        let mut seed = 12_345u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 33) as u32
+        };
+        for (k, text) in [
+            "7",
+            "42 car",
+            "1234 pedestrian",
+            "9 lorry/bus",
+            "gjpqy",
+            "ÄÖ",
+        ]
+        .iter()
+        .enumerate()
+        {
+            for height in [9.0, 12.5, 18.0, 22.0] {
+                let background = Rgb([(next() % 256) as u8, (next() % 256) as u8, 40]);
+                let tile = label_tile(&f, height, text, background);
+                for at in [(3, 4), (-7, -3), (50, 30), (-200, 5), (5, -100), (60, 38)] {
+                    let frame = RgbImage::from_fn(64, 40, |x, y| {
+                        Rgb([
+                            (x * 4) as u8,
+                            (y * 6 + k as u32) as u8,
+                            (next() % 256) as u8,
+                        ])
+                    });
+                    let mut drawn = frame.clone();
+                    let size = draw_label(&mut drawn, &f, height, at, text, background);
+                    assert_eq!(size, tile.dimensions());
+                    let mut pasted = frame;
+                    paste_tile(&mut pasted, &tile, at);
+                    assert!(pasted == drawn, "{text:?} at {at:?}, {height} px");
+                }
+            }
+        }
         Ok(())
     }
 

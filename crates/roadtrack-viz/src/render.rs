@@ -18,7 +18,8 @@
 //! for the tracks and one for the ground truth beside them ([`side_by_side`]).
 
 use crate::overlay::{
-    class_colour, draw_box, draw_dot, draw_faded_polyline, draw_label, font, id_colour,
+    class_colour, draw_box, draw_dot, draw_faded_polyline, draw_label, font, id_colour, label_tile,
+    paste_tile,
 };
 use ab_glyph::FontRef;
 use image::{Rgb, RgbImage};
@@ -29,7 +30,7 @@ use roadtrack_core::frame::Frame;
 use roadtrack_core::geometry::Point;
 use roadtrack_core::track_point::TrackPoint;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 
 /// What decides the colour of a box and its trail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -117,7 +118,14 @@ pub struct Renderer {
     font: FontRef<'static>,
     /// Per id: (frame, centre) of the most recent points, oldest first.
     trails: BTreeMap<u64, VecDeque<(u32, Point)>>,
+    /// The labels drawn so far, by text, height and colour ([`label_tile`]).
+    // Choice: kept whole up to LABEL_TILES labels, then emptied: a sequence's labels are
+    // its ids' (a few hundred), and the glyphs were 7 % of the demo overlay's CPU.
+    label_tiles: HashMap<(String, u32, [u8; 3]), RgbImage>,
 }
+
+/// The most labels a [`Renderer`] keeps drawn.
+const LABEL_TILES: usize = 4096;
 
 impl Renderer {
     /// A renderer with empty trails.
@@ -130,6 +138,7 @@ impl Renderer {
             config,
             font: font()?,
             trails: BTreeMap::new(),
+            label_tiles: HashMap::new(),
         })
     }
 
@@ -196,8 +205,9 @@ impl Renderer {
         // 3. Labels on top of everything.
         if self.config.labels {
             let height = self.config.label_height(image.height());
-            for p in &now {
-                self.draw_point_label(&mut image, p, colour_of(p.id, &p.class), height);
+            let colours: Vec<Rgb<u8>> = now.iter().map(|p| colour_of(p.id, &p.class)).collect();
+            for (p, colour) in now.iter().zip(colours) {
+                self.draw_point_label(&mut image, p, colour, height);
             }
         }
         image
@@ -223,13 +233,21 @@ impl Renderer {
         self.trails.retain(|_, t| !t.is_empty());
     }
 
-    fn draw_point_label(&self, image: &mut RgbImage, p: &TrackPoint, colour: Rgb<u8>, h: f32) {
+    fn draw_point_label(&mut self, image: &mut RgbImage, p: &TrackPoint, colour: Rgb<u8>, h: f32) {
         let text = if p.class == ObjectClass::Unknown {
             p.id.to_string()
         } else {
             format!("{} {}", p.id, p.class)
         };
-        let (tw, th) = crate::overlay::label_size(&self.font, h, &text);
+        if self.label_tiles.len() >= LABEL_TILES {
+            self.label_tiles.clear();
+        }
+        let font = &self.font;
+        let tile = self
+            .label_tiles
+            .entry((text, h.to_bits(), colour.0))
+            .or_insert_with_key(|(text, _, _)| label_tile(font, h, text, colour));
+        let (tw, th) = (tile.width() - 4, tile.height() - 2);
         let swatch =
             matches!(self.config.colour_by, ColourBy::Id) && p.class != ObjectClass::Unknown;
         let sw = if swatch { th + 2 } else { 0 };
@@ -251,7 +269,7 @@ impl Renderer {
                 class_colour(&p.class),
             );
         }
-        draw_label(image, &self.font, h, (x + sw as i32, y), &text, colour);
+        paste_tile(image, tile, (x + sw as i32, y));
     }
 }
 
