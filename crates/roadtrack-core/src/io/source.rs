@@ -7,6 +7,10 @@
 //! is an error naming the frame and the file, or, with [`OnBadFrame::Skip`], left out and
 //! recorded in the source's [`SkipLog`]. Frames keep the source's numbering either way, so
 //! a missing frame is a gap in time, not a renumbering.
+//!
+//! Images are decoded on a thread of their own, a few frames ahead of the reader
+//! ([`Prefetch`]), so decoding overlaps whatever the reader does with each frame. A video
+//! is decoded by the ffmpeg process, beside the reader already.
 
 use super::bad_frame::{OnBadFrame, SkipLog, SkippedFrame, check_jpeg_complete, frame_numbers};
 use super::natural::natural_cmp;
@@ -518,7 +522,78 @@ fn open_images(
                 image,
             })
         });
-    Ok(FrameSource::new(info, Box::new(frames), options))
+    Ok(FrameSource::new(
+        info,
+        Box::new(Prefetch::Idle(Box::new(frames))),
+        options,
+    ))
+}
+
+/// Frames decoded ahead of the reader before it waits for them.
+const DECODED_AHEAD: usize = 2;
+
+/// Frames read on a thread of their own, started at the first frame asked for (a source
+/// opened only for its [`SourceInfo`] decodes nothing), at most [`DECODED_AHEAD`] frames
+/// ahead of the reader, in order, errors included. Dropping it stops the thread after
+/// the frame it is decoding.
+// Choice: JPEG decoding was a quarter of `track --method mrf`'s CPU on the demo's
+// sequence, on the thread that tracks (docs/PERFORMANCE.md "Frames decoded ahead"). The
+// frames and their errors are the same in the same order; only when they are decoded
+// changes, up to DECODED_AHEAD + 1 frames past the last one the reader takes.
+enum Prefetch {
+    /// Not started.
+    Idle(Box<dyn Iterator<Item = Result<Frame>> + Send>),
+    /// The decoding thread's frames, and the thread.
+    Running(
+        std::sync::mpsc::Receiver<Result<Frame>>,
+        std::thread::JoinHandle<()>,
+    ),
+    /// Ended.
+    Done,
+}
+
+impl Iterator for Prefetch {
+    type Item = Result<Frame>;
+
+    fn next(&mut self) -> Option<Result<Frame>> {
+        if let Self::Idle(_) = self {
+            let Self::Idle(frames) = std::mem::replace(self, Self::Done) else {
+                return None;
+            };
+            let (tx, rx) = std::sync::mpsc::sync_channel(DECODED_AHEAD);
+            let started = std::thread::Builder::new()
+                .name("roadtrack-frames".into())
+                .spawn(move || {
+                    for frame in frames {
+                        if tx.send(frame).is_err() {
+                            return;
+                        }
+                    }
+                });
+            match started {
+                Ok(thread) => *self = Self::Running(rx, thread),
+                Err(e) => {
+                    return Some(Err(Error::Invalid(format!(
+                        "cannot start the thread that decodes the frames: {e}"
+                    ))));
+                }
+            }
+        }
+        let Self::Running(rx, _) = self else {
+            return None;
+        };
+        if let Ok(frame) = rx.recv() {
+            return Some(frame);
+        }
+        // The frames ended, or the decoder panicked: its panic goes on here, as it did
+        // when frames were decoded on the reader's thread.
+        if let Self::Running(_, thread) = std::mem::replace(self, Self::Done)
+            && let Err(panic) = thread.join()
+        {
+            std::panic::resume_unwind(panic);
+        }
+        None
+    }
 }
 
 #[cfg(test)]
@@ -533,6 +608,60 @@ mod tests {
             img.save(dir.path().join(names(i))).expect("save");
         }
         dir
+    }
+
+    fn tiny(index: u32) -> Frame {
+        Frame {
+            index,
+            time_s: 0.0,
+            image: RgbImage::new(2, 2),
+        }
+    }
+
+    /// The frames read ahead come in order with their errors between them; a reader that
+    /// stops early leaves an endless source behind without waiting for it.
+    #[test]
+    fn frames_read_ahead_keep_their_order_and_errors() {
+        let items = (1..=40).map(|k| {
+            if k % 7 == 0 {
+                Err(Error::Invalid(format!("frame {k}: bad")))
+            } else {
+                Ok(tiny(k))
+            }
+        });
+        let got: Vec<std::result::Result<u32, String>> = Prefetch::Idle(Box::new(items))
+            .map(|f| f.map(|f| f.index).map_err(|e| e.to_string()))
+            .collect();
+        let want: Vec<std::result::Result<u32, String>> = (1..=40)
+            .map(|k| {
+                if k % 7 == 0 {
+                    Err(format!("frame {k}: bad"))
+                } else {
+                    Ok(k)
+                }
+            })
+            .collect();
+        assert_eq!(got, want);
+        let mut endless = Prefetch::Idle(Box::new((1..).map(|k| Ok(tiny(k)))));
+        assert_eq!(
+            endless.nth(4).map(|f| f.map(|f| f.index).ok()),
+            Some(Some(5))
+        );
+        drop(endless);
+    }
+
+    /// A decoder that panics panics the reader, as on the reader's own thread; it does not
+    /// end the frames early as if the source were shorter.
+    #[test]
+    fn a_panic_while_reading_ahead_reaches_the_reader() {
+        let frames = (1..=5).map(|k| {
+            assert!(k < 3, "decoder failed at frame {k}");
+            Ok(tiny(k))
+        });
+        let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            Prefetch::Idle(Box::new(frames)).count()
+        }));
+        assert!(read.is_err(), "{read:?}");
     }
 
     #[test]
