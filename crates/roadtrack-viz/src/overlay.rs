@@ -6,7 +6,7 @@
 
 use ab_glyph::{FontRef, PxScale};
 use image::{Rgb, RgbImage};
-use imageproc::drawing::{draw_filled_rect_mut, draw_hollow_rect_mut, draw_text_mut, text_size};
+use imageproc::drawing::{draw_hollow_rect_mut, draw_text_mut, text_size};
 use imageproc::rect::Rect;
 use roadtrack_core::class::ObjectClass;
 use roadtrack_core::error::{Error, Result};
@@ -116,29 +116,19 @@ pub fn label_size(font: &FontRef<'_>, height_px: f32, text: &str) -> (u32, u32) 
     text_size(PxScale::from(height_px), font, text)
 }
 
-/// Draws `text` on a filled `background` rectangle whose top-left corner is `(x, y)`,
-/// clipped to the image, with a 2-px padding; returns the rectangle's size.
+/// Draws `text` on a filled `background` rectangle whose top-left corner is `at`, clipped
+/// to the image, with a 2-px padding ([`label_tile`]); returns the rectangle's size.
 pub fn draw_label(
     image: &mut RgbImage,
     font: &FontRef<'_>,
     height_px: f32,
-    (x, y): (i32, i32),
+    at: (i32, i32),
     text: &str,
     background: Rgb<u8>,
 ) -> (u32, u32) {
-    let (tw, th) = label_size(font, height_px, text);
-    let (w, h) = (tw + 4, th + 2);
-    draw_filled_rect_mut(image, Rect::at(x, y).of_size(w, h), background);
-    draw_text_mut(
-        image,
-        text_colour_on(background),
-        x + 2,
-        y + 1,
-        PxScale::from(height_px),
-        font,
-        text,
-    );
-    (w, h)
+    let tile = label_tile(font, height_px, text, background);
+    paste_tile(image, &tile, at);
+    tile.dimensions()
 }
 
 /// The label [`draw_label`] draws, on its own: the filled rectangle with the text in it, to
@@ -306,6 +296,30 @@ mod tests {
         Ok(())
     }
 
+    /// A label drawn in place on the frame: the filled rectangle, then the text over it.
+    fn label_in_place(
+        image: &mut RgbImage,
+        font: &FontRef<'_>,
+        height_px: f32,
+        (x, y): (i32, i32),
+        text: &str,
+        background: Rgb<u8>,
+    ) -> (u32, u32) {
+        let (tw, th) = label_size(font, height_px, text);
+        let (w, h) = (tw + 4, th + 2);
+        imageproc::drawing::draw_filled_rect_mut(image, Rect::at(x, y).of_size(w, h), background);
+        draw_text_mut(
+            image,
+            text_colour_on(background),
+            x + 2,
+            y + 1,
+            PxScale::from(height_px),
+            font,
+            text,
+        );
+        (w, h)
+    }
+
     /// A label drawn once as a tile and pasted is the label drawn in place, pixel for
     /// pixel, over any frame, wherever it lands (clipped at every edge).
     #[test]
@@ -339,7 +353,7 @@ mod tests {
                         ])
                     });
                     let mut drawn = frame.clone();
-                    let size = draw_label(&mut drawn, &f, height, at, text, background);
+                    let size = label_in_place(&mut drawn, &f, height, at, text, background);
                     assert_eq!(size, tile.dimensions());
                     let mut pasted = frame;
                     paste_tile(&mut pasted, &tile, at);

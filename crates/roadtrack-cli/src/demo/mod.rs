@@ -472,12 +472,9 @@ fn replay(
     let mut next = 0;
     move |frame: &roadtrack::frame::Frame| {
         next += 1;
-        found.get(next - 1).map_err(|e| match e {
-            roadtrack::Error::Invalid(m) => {
-                roadtrack::Error::Invalid(format!("frame {}: {m}", frame.index))
-            }
-            e => e,
-        })
+        found
+            .get(next - 1)
+            .map_err(|e| roadtrack::Error::Invalid(format!("frame {}: {e}", frame.index)))
     }
 }
 
@@ -507,11 +504,10 @@ fn run_methods(
         .info
         .selected_frames
         .map_or(String::new(), |n| format!(" of {n}"));
-    let (mut senders, mut receivers) = shared_frames::channels(all.len() + 1);
-    let detector_frames = receivers.pop();
-    if detector.is_none() {
-        senders.pop();
-    }
+    // One reader more for the detector, when there is one: the last.
+    let (senders, mut receivers) =
+        shared_frames::channels(all.len() + usize::from(detector.is_some()));
+    let detector_frames = detector.as_ref().and_then(|_| receivers.pop());
     let (done, detected) = std::thread::scope(|scope| {
         scope.spawn(move || shared_frames::broadcast(frames, senders));
         let handles: Vec<_> = all
