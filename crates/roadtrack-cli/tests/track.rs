@@ -404,8 +404,9 @@ fn hota_idf1(seq: &Path, tracks: &Path) -> (f64, f64) {
 }
 
 /// Issue 14 item 4: from the public detections of the aerial road, the relaxation tracker
-/// with configs/relaxation-video.toml (crossing-flow options, centre smoothing, longer
-/// coasting) beats its defaults by a wide margin (80 frames: 0.54 → 0.71 HOTA).
+/// with configs/relaxation-video.toml (crossing-flow options, centre smoothing for the
+/// matching, longer coasting) beats its defaults by a wide margin (80 frames: 0.54 → 0.71
+/// HOTA).
 #[test]
 fn relaxation_video_config_beats_the_defaults_on_public_detections() {
     let dir = tempfile::tempdir().expect("tempdir");
