@@ -486,6 +486,43 @@ fn the_filters_with_detections_are_the_same_at_1_and_2_threads() -> Result<()> {
     Ok(())
 }
 
+/// `pf_write_detection_centre`: the same objects under the same ids in every frame, and a
+/// written centre that moved is the centre of one of the frame's detections (the box's
+/// size may change with it: the sizer reads the detection nearest the written box).
+#[test]
+fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
+    let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
+    let mut cfg = FilterTrackConfig::default();
+    let (_, mean) = run_counts(FilterMethod::Pf, &cfg, &steps, 5)?;
+    cfg.detections.pf_write_detection_centre = true;
+    let (_, own) = run_counts(FilterMethod::Pf, &cfg, &steps, 5)?;
+    assert_eq!(mean.len(), own.len());
+    let mut moved = 0;
+    for (a, b) in mean.iter().zip(&own) {
+        assert_eq!(a.frame, b.frame);
+        let ids = |f: &FramePoints| f.points.iter().map(|p| p.id).collect::<Vec<_>>();
+        assert_eq!(ids(a), ids(b), "frame {}", a.frame);
+        let step = steps
+            .iter()
+            .find(|s| s.frame.index == a.frame)
+            .ok_or_else(|| Error::Invalid("frame".into()))?;
+        for (p, q) in a.points.iter().zip(&b.points) {
+            let c = q.bbox.centre();
+            if p.bbox.centre() != c {
+                moved += 1;
+                assert!(
+                    step.detections.iter().any(|d| d.pos_px.distance(c) < 1e-9),
+                    "frame {}: id {} written at {c:?}, no detection there",
+                    a.frame,
+                    q.id
+                );
+            }
+        }
+    }
+    assert!(moved > 50, "{moved} boxes moved");
+    Ok(())
+}
+
 /// `configs/filters-pedestrians.toml`, as loaded by `track --config`.
 fn pedestrian_config() -> Result<FilterTrackConfig> {
     let path = std::path::Path::new(concat!(

@@ -169,6 +169,9 @@ struct Object {
     size_px: (f64, f64),
     class: ObjectClass,
     estimate: (Point, Point, f64),
+    /// The centre of the detection it took this frame, when that is what is written
+    /// ([`DetectionLikelihoodConfig::pf_write_detection_centre`]).
+    written_centre: Option<Point>,
 }
 
 impl Object {
@@ -429,6 +432,10 @@ impl ParticleFilterTracker {
         let max_lost = self.config.max_lost_frames;
         let mut taken = vec![false; measurements.len()];
         for (o, a) in self.objects.iter_mut().zip(&assigned) {
+            o.written_centre = a
+                .filter(|_| model.pf_write_detection_centre)
+                .and_then(|j| detections.get(j))
+                .map(|d| d.pos_px);
             if let Some(j) = *a {
                 taken[j] = true;
                 // The detection's box and class describe the object from now on.
@@ -492,7 +499,11 @@ impl ParticleFilterTracker {
                 time_s: frame.time_s,
                 id: o.id,
                 class: o.class.clone(),
-                bbox: BBox::from_centre(o.estimate.0, o.size_px.0, o.size_px.1),
+                bbox: BBox::from_centre(
+                    o.written_centre.unwrap_or(o.estimate.0),
+                    o.size_px.0,
+                    o.size_px.1,
+                ),
                 score: o.particles.h.iter().sum::<f64>() / o.particles.len().max(1) as f64,
                 ground: None,
             })
@@ -536,6 +547,7 @@ impl ParticleFilterTracker {
                 .unwrap_or((self.config.object_width_px, self.config.object_height_px)),
             class: d.class.clone().unwrap_or_else(|| self.config.class.clone()),
             estimate: (d.pos_px, Point::default(), 1.0),
+            written_centre: None,
         });
         Ok(())
     }
