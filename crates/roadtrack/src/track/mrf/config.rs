@@ -128,6 +128,16 @@ pub struct MrfConfig {
     /// `a = clamp(smaller box side / box_smoothing_px, 0.25, 1)`: boxes narrower than this
     /// are smoothed, px. Default 16; 0 reports the detector's boxes as they are.
     pub box_smoothing_px: f64,
+    /// With detections: whether the box written is the blended one (`box_smoothing_px`) or
+    /// the detector's own; the blended box is what the association predicts from either
+    /// way. Default false: the detector's box.
+    // Choice: the blend only looks back and lags a box that moves or grows; the offline
+    // box fit after the tracker (`--smooth-boxes`, on by default) smooths the written
+    // boxes looking both ways. Writing the detector's box raised the MRF's HOTA on all six
+    // simulated video scenes from public detections (+0.004 to +0.045) and on five of six
+    // from the learned detector's boxes (crossing/oblique −0.001; docs/EXPERIMENTS.md
+    // "Writing the detection's centre"). True writes the blend (before 2026-11-29).
+    pub write_smoothed_box: bool,
     /// With detections: an object's box velocity starts as the mean of its first
     /// displacements (the k-th with weight `max(1/k, velocity_smoothing)`) instead of at
     /// rest. Default true.
@@ -210,6 +220,7 @@ impl Default for MrfConfig {
             block_overlap_weight: 0.25,
             velocity_smoothing: 0.1,
             box_smoothing_px: 16.0,
+            write_smoothed_box: false,
             // Choice (issue 14, means over seeds 1–3 from public detections, HOTA / IDF1 on
             // intersection and crossing, docs/MRF.md "Detections"): the old greedy IoU
             // matching 0.686 / 0.786 and 0.663 / 0.770; Hungarian with the centre-distance

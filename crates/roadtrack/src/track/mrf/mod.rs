@@ -584,7 +584,9 @@ impl MrfTracker {
             // 5 px pedestrian), and the smoothed box is also what the association predicts
             // from. Seed 1, HOTA intersection / crossing: raw boxes 0.562 / 0.712; smoothed
             // up to 12 / 16 / 24 px 0.599 / 0.724, 0.634 / 0.700, 0.640 / 0.656; smoothing
-            // only the reported box (16 px) 0.587 / 0.720.
+            // only the reported box (16 px) 0.587 / 0.720. Since the offline box fit, the
+            // blend steers the association and the detector's box is written
+            // (`write_smoothed_box`).
             let bbox = match (track.shown, track.missed) {
                 (Some(p), 0) if self.config.box_smoothing_px > 0.0 => {
                     let side = detected.width.min(detected.height);
@@ -628,7 +630,11 @@ impl MrfTracker {
                 time_s: frame.time_s,
                 id: u64::from(id),
                 class,
-                bbox,
+                bbox: if self.config.write_smoothed_box {
+                    bbox
+                } else {
+                    detected
+                },
                 score,
                 ground: None,
             });
