@@ -523,6 +523,42 @@ fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
     Ok(())
 }
 
+/// `phd_write_detection_centre`: the same labels, weights and counts in every frame; a
+/// written centre that moved is the centre of one of the frame's detections.
+#[test]
+fn the_phd_writes_the_detections_centre_and_keeps_its_labels() -> Result<()> {
+    let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
+    let mut cfg = FilterTrackConfig::default();
+    let (counts, mean) = run_counts(FilterMethod::Phd, &cfg, &steps, 5)?;
+    cfg.detections.phd_write_detection_centre = true;
+    let (same_counts, own) = run_counts(FilterMethod::Phd, &cfg, &steps, 5)?;
+    assert_eq!(counts, same_counts);
+    assert_eq!(mean.len(), own.len());
+    let mut moved = 0;
+    for (a, b) in mean.iter().zip(&own) {
+        let ids = |f: &FramePoints| f.points.iter().map(|p| (p.id, p.score)).collect::<Vec<_>>();
+        assert_eq!(ids(a), ids(b), "frame {}", a.frame);
+        let step = steps
+            .iter()
+            .find(|s| s.frame.index == a.frame)
+            .ok_or_else(|| Error::Invalid("frame".into()))?;
+        for (p, q) in a.points.iter().zip(&b.points) {
+            let c = q.bbox.centre();
+            if p.bbox.centre() != c {
+                moved += 1;
+                assert!(
+                    step.detections.iter().any(|d| d.pos_px.distance(c) < 1e-9),
+                    "frame {}: label {} written at {c:?}, no detection there",
+                    a.frame,
+                    q.id
+                );
+            }
+        }
+    }
+    assert!(moved > 50, "{moved} boxes moved");
+    Ok(())
+}
+
 /// `configs/filters-pedestrians.toml`, as loaded by `track --config`.
 fn pedestrian_config() -> Result<FilterTrackConfig> {
     let path = std::path::Path::new(concat!(

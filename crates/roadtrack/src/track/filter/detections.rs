@@ -93,6 +93,13 @@ pub struct DetectionLikelihoodConfig {
     // docs/EXPERIMENTS.md "Writing the detection's centre"). Off by default, where the
     // estimate is the method's output; configs/filters-pedestrians.toml sets it.
     pub pf_write_detection_centre: bool,
+    /// PHD with `label_association = "exclusive"`: a label whose most probable source this
+    /// frame is a detection (its marginal association probability above that of a miss)
+    /// is written at that detection's centre instead of its particles' mean. Default
+    /// false.
+    // Choice: as `pf_write_detection_centre`, for the same reason; the labels' weights and
+    // particles are unchanged. configs/filters-pedestrians.toml sets it.
+    pub phd_write_detection_centre: bool,
     /// PHD: a detection within this many `σ` of a label's predicted position is explained
     /// by it and proposes no birth. Default 5.
     // Choice: 3 σ let a label that lags its object by a few px start a second label on
@@ -154,6 +161,7 @@ impl Default for DetectionLikelihoodConfig {
             pf_gate_sigmas: 4.0,
             pf_tentative_detections: 3,
             pf_write_detection_centre: false,
+            phd_write_detection_centre: false,
             birth_gate_sigmas: 5.0,
             merge_distance_px: 0.0,
             label_update: LabelUpdate::Bernoulli,
@@ -250,6 +258,7 @@ impl DetectionLikelihoodConfig {
             association: self.label_association,
             birth_claim_below: self.birth_claim_below,
             occlusion_full_visibility: self.occlusion_full_visibility,
+            write_detection_centre: self.phd_write_detection_centre,
         }
     }
 

@@ -301,11 +301,7 @@ fn far_pedestrians_walking_in_a_group_keep_one_id_each() -> Result<()> {
         let scene = walkers(&people, 80, seed)?;
         let w = scene[0].1[&1].width;
         assert!((5.0..7.0).contains(&w), "width {w}");
-        let ids = ids_per_truth(
-            &scene,
-            &run_with_boxes_at(&new, &scene, 640, 480)?,
-            3,
-        );
+        let ids = ids_per_truth(&scene, &run_with_boxes_at(&new, &scene, 640, 480)?, 3);
         let mut all = std::collections::BTreeSet::new();
         for (gt, (got, missed)) in &ids {
             assert_eq!(got.len(), 1, "seed {seed}, walker {gt}: ids {got:?}");

@@ -248,6 +248,9 @@ impl LabelledPhd {
     /// particles keep the PHD form over every particle's `C_j`. `h` as there. A label in
     /// `label_pd` has that `p_D` in place of `detection_prob` (the occlusion model,
     /// [`super::occlusion`]); an empty map is the paper's one `p_D`.
+    ///
+    /// Returns, per label, the index of its most probable detection where `p_ℓj` is above
+    /// the label's `p_ℓ0` (ties: the first).
     pub fn update_detections_exclusive(
         &mut self,
         z: &[BoxMeasurement],
@@ -255,7 +258,7 @@ impl LabelledPhd {
         clutter_per_frame: f64,
         image_h: Option<&[f64]>,
         label_pd: &BTreeMap<u32, f64>,
-    ) {
+    ) -> BTreeMap<u32, usize> {
         let pd = detection_prob;
         let kappa = clutter_per_frame / self.region().area();
         let m = z.len();
@@ -315,5 +318,20 @@ impl LabelledPhd {
         for (w, f) in p.w.iter_mut().zip(&factors) {
             *w *= f;
         }
+        let mut best = BTreeMap::new();
+        for (&l, &s) in &slot {
+            let row = &p_assoc[s * m..(s + 1) * m];
+            // The first of equal maxima: `max_by` keeps the last, so compare reversed.
+            if let Some((j, &pj)) = row
+                .iter()
+                .enumerate()
+                .rev()
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                && pj > p_miss[s]
+            {
+                best.insert(l, j);
+            }
+        }
+        best
     }
 }

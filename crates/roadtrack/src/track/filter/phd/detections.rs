@@ -54,6 +54,9 @@ pub struct DetectionModel {
     /// visible behind the labels in front of it is detected with `p_D · v / v_full`
     /// ([`super::occlusion`]); 0: one `p_D` for all (the paper).
     pub occlusion_full_visibility: f64,
+    /// With [`LabelAssociation::Exclusive`]: a label is written at the centre of its most
+    /// probable detection, when that is more probable than a miss, instead of at its mean.
+    pub write_detection_centre: bool,
 }
 
 impl LabelledPhd {

@@ -54,6 +54,9 @@ pub struct PhdTracker {
     grid_births: bool,
     /// Each label's box size, from the last detection it explained (the occlusion model).
     label_size: BTreeMap<u32, Point>,
+    /// Labels written at a detection's centre this frame
+    /// ([`DetectionModel::write_detection_centre`]).
+    written: BTreeMap<u32, Point>,
 }
 
 impl std::fmt::Debug for PhdTracker {
@@ -85,6 +88,7 @@ impl PhdTracker {
             h: Vec::new(),
             grid_births: true,
             label_size: BTreeMap::new(),
+            written: BTreeMap::new(),
         })
     }
 
@@ -258,14 +262,20 @@ impl PhdTracker {
         if model.label_update == LabelUpdate::Bernoulli
             && model.association == LabelAssociation::Exclusive
         {
-            filter.update_detections_exclusive(
+            let best = filter.update_detections_exclusive(
                 measurements,
                 model.detection_prob,
                 model.clutter_per_frame,
                 image_h,
                 &label_pd,
             );
+            self.written.clear();
+            if model.write_detection_centre {
+                self.written
+                    .extend(best.into_iter().map(|(l, j)| (l, measurements[j].pos)));
+            }
         } else {
+            self.written.clear();
             filter.update_detections(
                 measurements,
                 model.detection_prob,
@@ -302,7 +312,13 @@ impl PhdTracker {
             filter
                 .estimates()
                 .into_iter()
-                .map(|e| estimate_point(&self.config, frame, &e))
+                .map(|e| {
+                    let mut p = estimate_point(&self.config, frame, &e);
+                    if let Some(c) = self.written.get(&e.label) {
+                        p.bbox = BBox::from_centre(*c, p.bbox.width, p.bbox.height);
+                    }
+                    p
+                })
                 .collect()
         })
     }
