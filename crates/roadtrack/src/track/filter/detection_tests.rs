@@ -486,22 +486,25 @@ fn the_filters_with_detections_are_the_same_at_1_and_2_threads() -> Result<()> {
     Ok(())
 }
 
-/// `pf_write_detection_centre`: the same objects under the same ids in every frame, and a
-/// written centre that moved is the centre of one of the frame's detections (the box's
-/// size may change with it: the sizer reads the detection nearest the written box).
-#[test]
-fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
+/// Runs `method` on a crossing twice, as configured and with `turn_on` applied: both runs
+/// write the same ids in every frame, and every centre the second run moved is the centre
+/// of one of the frame's detections (more than 50 moved). Returns both runs.
+fn written_at_detections(
+    method: FilterMethod,
+    turn_on: impl Fn(&mut FilterTrackConfig),
+) -> Result<[(Counts, Vec<FramePoints>); 2]> {
     let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
     let mut cfg = FilterTrackConfig::default();
-    let (_, mean) = run_counts(FilterMethod::Pf, &cfg, &steps, 5)?;
-    cfg.detections.pf_write_detection_centre = true;
-    let (_, own) = run_counts(FilterMethod::Pf, &cfg, &steps, 5)?;
+    let before = run_counts(method, &cfg, &steps, 5)?;
+    turn_on(&mut cfg);
+    let after = run_counts(method, &cfg, &steps, 5)?;
+    let (mean, own) = (&before.1, &after.1);
     assert_eq!(mean.len(), own.len());
     let mut moved = 0;
-    for (a, b) in mean.iter().zip(&own) {
+    for (a, b) in mean.iter().zip(own) {
         assert_eq!(a.frame, b.frame);
         let ids = |f: &FramePoints| f.points.iter().map(|p| p.id).collect::<Vec<_>>();
-        assert_eq!(ids(a), ids(b), "frame {}", a.frame);
+        assert_eq!(ids(a), ids(b), "{method:?}, frame {}", a.frame);
         let step = steps
             .iter()
             .find(|s| s.frame.index == a.frame)
@@ -512,14 +515,25 @@ fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
                 moved += 1;
                 assert!(
                     step.detections.iter().any(|d| d.pos_px.distance(c) < 1e-9),
-                    "frame {}: id {} written at {c:?}, no detection there",
+                    "{method:?}, frame {}: id {} written at {c:?}, no detection there",
                     a.frame,
                     q.id
                 );
             }
         }
     }
-    assert!(moved > 50, "{moved} boxes moved");
+    assert!(moved > 50, "{method:?}: {moved} boxes moved");
+    Ok([before, after])
+}
+
+/// `pf_write_detection_centre`: the same objects under the same ids in every frame, and a
+/// written centre that moved is the centre of one of the frame's detections (the box's
+/// size may change with it: the sizer reads the detection nearest the written box).
+#[test]
+fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
+    written_at_detections(FilterMethod::Pf, |c| {
+        c.detections.pf_write_detection_centre = true;
+    })?;
     Ok(())
 }
 
@@ -527,35 +541,14 @@ fn the_pf_writes_the_detections_centre_and_keeps_its_tracks() -> Result<()> {
 /// written centre that moved is the centre of one of the frame's detections.
 #[test]
 fn the_phd_writes_the_detections_centre_and_keeps_its_labels() -> Result<()> {
-    let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
-    let mut cfg = FilterTrackConfig::default();
-    let (counts, mean) = run_counts(FilterMethod::Phd, &cfg, &steps, 5)?;
-    cfg.detections.phd_write_detection_centre = true;
-    let (same_counts, own) = run_counts(FilterMethod::Phd, &cfg, &steps, 5)?;
+    let [(counts, mean), (same_counts, own)] = written_at_detections(FilterMethod::Phd, |c| {
+        c.detections.phd_write_detection_centre = true;
+    })?;
     assert_eq!(counts, same_counts);
-    assert_eq!(mean.len(), own.len());
-    let mut moved = 0;
     for (a, b) in mean.iter().zip(&own) {
-        let ids = |f: &FramePoints| f.points.iter().map(|p| (p.id, p.score)).collect::<Vec<_>>();
-        assert_eq!(ids(a), ids(b), "frame {}", a.frame);
-        let step = steps
-            .iter()
-            .find(|s| s.frame.index == a.frame)
-            .ok_or_else(|| Error::Invalid("frame".into()))?;
-        for (p, q) in a.points.iter().zip(&b.points) {
-            let c = q.bbox.centre();
-            if p.bbox.centre() != c {
-                moved += 1;
-                assert!(
-                    step.detections.iter().any(|d| d.pos_px.distance(c) < 1e-9),
-                    "frame {}: label {} written at {c:?}, no detection there",
-                    a.frame,
-                    q.id
-                );
-            }
-        }
+        let scores = |f: &FramePoints| f.points.iter().map(|p| p.score).collect::<Vec<_>>();
+        assert_eq!(scores(a), scores(b), "frame {}", a.frame);
     }
-    assert!(moved > 50, "{moved} boxes moved");
     Ok(())
 }
 
