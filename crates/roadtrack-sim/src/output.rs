@@ -118,10 +118,10 @@ pub fn encode_frame(step: &SimStep, config: &SimConfig) -> Result<Vec<u8>> {
     let img = &step.frame.image;
     let res = match config.image_format {
         ImageFormat::Jpeg => {
-            // Choice: jpeg-encoder rather than image's encoder, 1.7 times as fast (half the
+            // Choice: jpeg-encoder rather than image's encoder, twice as fast (half the
             // simulator's CPU was JPEG encoding). Same standard tables and quality scaling,
             // and 4:4:4 as image's encoder wrote, so the frames differ from before only by
-            // the DCT's rounding (docs/SIMULATOR.md "Speed").
+            // the DCT's rounding (docs/SIMULATOR.md "Speed", "The JPEG encoder").
             let (w, h) = img.dimensions();
             let (Ok(w), Ok(h)) = (u16::try_from(w), u16::try_from(h)) else {
                 return Err(Error::Invalid(format!(

@@ -117,7 +117,8 @@ pub fn label_size(font: &FontRef<'_>, height_px: f32, text: &str) -> (u32, u32) 
 }
 
 /// Draws `text` on a filled `background` rectangle whose top-left corner is `at`, clipped
-/// to the image, with a 2-px padding ([`label_tile`]); returns the rectangle's size.
+/// to the image, with [`LABEL_PADDING`] around the text ([`label_tile`]); returns the
+/// rectangle's size.
 pub fn draw_label(
     image: &mut RgbImage,
     font: &FontRef<'_>,
@@ -131,17 +132,21 @@ pub fn draw_label(
     tile.dimensions()
 }
 
+/// Space around a label's text in its rectangle, px: left and right, top and bottom.
+pub const LABEL_PADDING: (u32, u32) = (2, 1);
+
 /// The label [`draw_label`] draws, on its own: the filled rectangle with the text in it, to
 /// be copied into frames with [`paste_tile`]. Laying the glyphs out and rasterising them
 /// is most of a label's cost, and a track's label repeats frame after frame.
 pub fn label_tile(font: &FontRef<'_>, height_px: f32, text: &str, background: Rgb<u8>) -> RgbImage {
     let (tw, th) = label_size(font, height_px, text);
-    let mut tile = RgbImage::from_pixel(tw + 4, th + 2, background);
+    let (px, py) = LABEL_PADDING;
+    let mut tile = RgbImage::from_pixel(tw + 2 * px, th + 2 * py, background);
     draw_text_mut(
         &mut tile,
         text_colour_on(background),
-        2,
-        1,
+        px as i32,
+        py as i32,
         PxScale::from(height_px),
         font,
         text,
@@ -324,12 +329,9 @@ mod tests {
     /// pixel, over any frame, wherever it lands (clipped at every edge).
     #[test]
     fn a_pasted_label_tile_is_the_label_drawn_in_place() -> Result<()> {
+        use rand::RngExt;
         let f = font()?;
-        let mut seed = 12_345u64;
-        let mut next = move || {
-            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
-            (seed >> 33) as u32
-        };
+        let mut rng = roadtrack_core::rng::rng_for(5, roadtrack_core::rng::Stream::Synthetic, 0);
         for (k, text) in [
             "7",
             "42 car",
@@ -342,15 +344,11 @@ mod tests {
         .enumerate()
         {
             for height in [9.0, 12.5, 18.0, 22.0] {
-                let background = Rgb([(next() % 256) as u8, (next() % 256) as u8, 40]);
+                let background = Rgb([rng.random(), rng.random(), 40]);
                 let tile = label_tile(&f, height, text, background);
                 for at in [(3, 4), (-7, -3), (50, 30), (-200, 5), (5, -100), (60, 38)] {
                     let frame = RgbImage::from_fn(64, 40, |x, y| {
-                        Rgb([
-                            (x * 4) as u8,
-                            (y * 6 + k as u32) as u8,
-                            (next() % 256) as u8,
-                        ])
+                        Rgb([(x * 4) as u8, (y * 6 + k as u32) as u8, rng.random()])
                     });
                     let mut drawn = frame.clone();
                     let size = label_in_place(&mut drawn, &f, height, at, text, background);

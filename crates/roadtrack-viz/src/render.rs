@@ -18,8 +18,8 @@
 //! for the tracks and one for the ground truth beside them ([`side_by_side`]).
 
 use crate::overlay::{
-    class_colour, draw_box, draw_dot, draw_faded_polyline, draw_label, font, id_colour, label_tile,
-    paste_tile,
+    LABEL_PADDING, class_colour, draw_box, draw_dot, draw_faded_polyline, draw_label, font,
+    id_colour, label_tile, paste_tile,
 };
 use ab_glyph::FontRef;
 use image::{Rgb, RgbImage};
@@ -247,7 +247,8 @@ impl Renderer {
             .label_tiles
             .entry((text, h.to_bits(), colour.0))
             .or_insert_with_key(|(text, _, _)| label_tile(font, h, text, colour));
-        let (tw, th) = (tile.width() - 4, tile.height() - 2);
+        let (px, py) = LABEL_PADDING;
+        let (tw, th) = (tile.width() - 2 * px, tile.height() - 2 * py);
         let swatch =
             matches!(self.config.colour_by, ColourBy::Id) && p.class != ObjectClass::Unknown;
         let sw = if swatch { th + 2 } else { 0 };
