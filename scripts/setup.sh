@@ -9,14 +9,17 @@
 #     Nothing comes from a model hub.
 #     It also trains the learned detector models/detector.onnx (docs/DETECTION.md, "Learned
 #     detector") when the file is missing, or always with ROADTRACK_RETRAIN=1: a release
-#     build, then `roadtrack train --detector` with the shipped model's recipe (deterministic:
-#     the same bytes on every run).
+#     build, then `roadtrack train --detector` with the shipped model's recipe and its box
+#     gain (deterministic: the same bytes on every run).
 set -euo pipefail
 
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
 # Stages, each STEPS:SEED:SIM_SEED_BASE:LEARNING_RATE, every stage after the first starting
 # from the weights of the one before.
 DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4 4000:3:11000:3e-4}"
+# Then the box gain (docs/DETECTION.md "Box gain"): the terms `python3 scripts/box_gain.py`
+# measured on the last stage's network, written into the model's metadata.
+DETECTOR_BOX_GAIN="${DETECTOR_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.027,-0.169,-0.003,-0.128}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
@@ -55,7 +58,9 @@ PY
         -o "$work/stage$n.onnx")
       init=(--init "$work/stage$n.json")
     done
-    mv "$work/stage$n.onnx" "$root/models/detector.onnx"
+    (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
+      train --detector --init "$work/stage$n.onnx" --box-gain="$DETECTOR_BOX_GAIN" \
+      -o "$root/models/detector.onnx")
     rm -rf "$work"
   fi
   echo "setup: learned detector at $root/models/detector.onnx" >&2

@@ -106,6 +106,10 @@ pub struct OnnxArgs {
     /// and upside down): for nadir (aerial) views; twice the compute again.
     #[arg(long)]
     pub flip_vertical: bool,
+    /// --detector cnn: leave the boxes at the network's sizes, without the model's box gain
+    /// (per-class size factors in its metadata, docs/DETECTION.md "Box gain").
+    #[arg(long)]
+    pub no_box_gain: bool,
 }
 
 /// `HxW` or `S` (square) → `[h, w]`.
@@ -146,6 +150,7 @@ impl OnnxArgs {
             ("--keep-nested", self.keep_nested),
             ("--no-flip", self.no_flip),
             ("--flip-vertical", self.flip_vertical),
+            ("--no-box-gain", self.no_box_gain),
         ]
     }
 
@@ -165,6 +170,7 @@ impl OnnxArgs {
                         | "--keep-nested"
                         | "--no-flip"
                         | "--flip-vertical"
+                        | "--no-box-gain"
                 )
             })
             .collect()
@@ -210,6 +216,7 @@ impl OnnxArgs {
         }
         config.flip = !self.no_flip;
         config.flip_vertical = self.flip_vertical;
+        config.box_gain = !self.no_box_gain;
         if self.keep_nested || !nested_in_detector {
             config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
@@ -271,6 +278,7 @@ impl OnnxArgs {
                 ("--keep-nested", self.keep_nested),
                 ("--no-flip", self.no_flip),
                 ("--flip-vertical", self.flip_vertical),
+                ("--no-box-gain", self.no_box_gain),
             ],
             "only with --detector cnn, not --detector onnx",
         )?;

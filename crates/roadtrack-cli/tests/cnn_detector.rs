@@ -328,6 +328,7 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         &["--sim-seed-base", "5000"],
         &["--weights-out", "w.json"],
         &["--average", "a.onnx", "b.onnx"],
+        &["--box-gain", "0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0"],
         &["--clip-to-crop"],
         &["--clip-to-crop", "--edge-crops", "0.3"],
     ] {
@@ -420,8 +421,27 @@ fn average_of_the_shipped_model_with_itself_is_the_shipped_model_and_bad_inputs_
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", stderr(&o));
+    // The mean is a network: the box gain, measured for one network, is not carried.
+    // Given back with --box-gain, the result is the shipped model byte for byte.
     let shipped = std::fs::read(shipped_model()).expect("shipped");
-    assert_eq!(std::fs::read(&model).expect("model"), shipped);
+    let gain = roadtrack_cnn::centernet::CenterNetDetector::load(
+        &shipped_model(),
+        &roadtrack_cnn::centernet::CenterNetConfig::default(),
+    )
+    .expect("load the shipped model")
+    .box_gain();
+    let gain: Vec<String> = gain.iter().flatten().map(f64::to_string).collect();
+    let regained = dir.path().join("regained.onnx");
+    let o = bin()
+        .args(["-q", "train", "--detector", "--init"])
+        .arg(&model)
+        .args(["--box-gain", &gain.join(",")])
+        .arg("-o")
+        .arg(&regained)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&regained).expect("regained"), shipped);
     let again = dir.path().join("again.onnx");
     let o = bin()
         .args(["-q", "train", "--detector", "--average"])
@@ -432,7 +452,50 @@ fn average_of_the_shipped_model_with_itself_is_the_shipped_model_and_bad_inputs_
         .output()
         .expect("run");
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(std::fs::read(&again).expect("again"), shipped);
+    assert_eq!(
+        std::fs::read(&again).expect("again"),
+        std::fs::read(&model).expect("model")
+    );
+    // --box-gain: sixteen terms within ±0.5 and a learned detector to copy, else refused.
+    // A list that starts with a minus sign goes with `=`.
+    let beyond = format!("--box-gain=-0.1,{}0.9", "0,".repeat(14));
+    for (flags, code, needle) in [
+        (&["--box-gain", "0,0"][..], 2, "expected 16 numbers"),
+        (&[&beyond[..]], 2, "`0.9` is not a number within ±0.5"),
+    ] {
+        let o = bin()
+            .args(["-q", "train", "--detector", "--init"])
+            .arg(&model)
+            .args(flags)
+            .arg("-o")
+            .arg(dir.path().join("x.onnx"))
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(code), "{flags:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{needle}: {}", stderr(&o));
+    }
+    let o = bin()
+        .args(["-q", "train", "--detector", "--init"])
+        .arg(cnn_fixture("tiny_yolo.onnx"))
+        .args(["--box-gain", &"0,".repeat(16)[..31], "-o"])
+        .arg(dir.path().join("x.onnx"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("tiny_yolo.onnx"), "{}", stderr(&o));
+    let o = bin()
+        .args([
+            "-q",
+            "train",
+            "--detector",
+            "--box-gain",
+            &"0,".repeat(16)[..31],
+            "-o",
+        ])
+        .arg(dir.path().join("x.onnx"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     // Another kind of model, or networks of two shapes: exit 1 naming what is wrong.
     let text = std::fs::read_to_string(cnn_fixture("centernet_parity.json")).expect("fixture");
     let parity: serde_json::Value = serde_json::from_str(&text).expect("json");

@@ -80,6 +80,42 @@ pub struct CenterNetConfig {
     /// mirrored, upside down, both), else two. For nadir views, where nothing has an up.
     /// Default off.
     pub flip_vertical: bool,
+    /// Box gain: each output box is scaled about its centre by its class's size-dependent
+    /// width and height factors from the model's `roadtrack.box_gain` metadata
+    /// ([`BOX_GAIN_KEY`], [`box_factor`]; written by `roadtrack train --detector
+    /// --box-gain`), after NMS and the nested-box rule, so the factors change the boxes'
+    /// sizes and not which boxes are kept. A model without the key is unchanged; false: the
+    /// network's sizes as they come (what `scripts/box_gain.py` measures the gain on).
+    /// Default true.
+    pub box_gain: bool,
+}
+
+/// The model metadata key of the box gain ([`CenterNetConfig::box_gain`]): sixteen
+/// comma-separated numbers, `a_w, b_w, a_h, b_h` for each heat-map channel (car, bus/truck,
+/// bicycle/motorcycle, pedestrian), the terms of [`box_factor`].
+pub const BOX_GAIN_KEY: &str = "roadtrack.box_gain";
+
+/// Box gain: the reference size, px, at which a class's factors are `e^a`.
+pub const BOX_GAIN_REF_PX: f64 = 32.0;
+
+/// Box gain: the range of box sizes `√(w h)`, px, over which the factors change; beyond
+/// it they are those of its ends.
+// Choice: 8–128 px, the sizes the held-out renders of scripts/box_gain.py have walkers at
+// (5 345 matches, 4–100 px): a line fitted there is not extrapolated to sizes it never saw.
+pub const BOX_GAIN_SIZE_RANGE_PX: (f64, f64) = (8.0, 128.0);
+
+/// The width and height factors of a box of the network's size `w × h` under the gain
+/// terms `[a_w, b_w, a_h, b_h]` of its class: `e^(a + b ln(s / 32))` for each side, `s =
+/// √(w h)` clamped to [`BOX_GAIN_SIZE_RANGE_PX`]. A line in log size, because the network
+/// pulls sizes toward the middle of what it was trained on: small walkers come out too
+/// small and large ones a little too large (docs/DETECTION.md "Box gain").
+pub fn box_factor(terms: &[f64; 4], w: f64, h: f64) -> (f64, f64) {
+    let (lo, hi) = BOX_GAIN_SIZE_RANGE_PX;
+    let l = ((w * h).sqrt().clamp(lo, hi) / BOX_GAIN_REF_PX).ln();
+    (
+        (terms[0] + terms[1] * l).exp(),
+        (terms[2] + terms[3] * l).exp(),
+    )
 }
 
 /// Zoom: a zoomed-level box overlapping a box of the other levels by more than this IoU is
@@ -136,6 +172,11 @@ impl Default for CenterNetConfig {
             // 0.93 / 0.75 (docs/DETECTION.md "Test-time flip"), for half the frame rate.
             flip: true,
             flip_vertical: false,
+            // Choice: on. The shipped model's small walkers' boxes are too small (median
+            // ln(w_true/w) +0.13 to +0.25 under 40 px tall on held-out renders of the
+            // training's random cameras), and the gain is part of the model: a model
+            // without the key is not scaled (docs/DETECTION.md "Box gain").
+            box_gain: true,
         }
     }
 }
@@ -251,6 +292,9 @@ pub struct CenterNetDetector {
     native: Option<NativeNet>,
     /// With the zoom: the camera, to enlarge only the rows where objects are small.
     zoom_calibration: Option<Calibration>,
+    /// The box gain's terms per heat-map channel (the model's [`BOX_GAIN_KEY`], all 0 —
+    /// factors of 1 — without it or with [`CenterNetConfig::box_gain`] off).
+    gain: [[f64; 4]; CLASSES],
 }
 
 impl std::fmt::Debug for CenterNetDetector {
@@ -283,6 +327,12 @@ impl CenterNetDetector {
         }
         let prep = preprocessing_from_metadata(&proto);
         prep.validate()?;
+        let model_gain = super::box_gain_of(&proto, path)?;
+        let gain = if config.box_gain {
+            model_gain
+        } else {
+            [[0.0; 4]; CLASSES]
+        };
         let native = native_of(&proto, path);
         let det = Self {
             path: path.to_path_buf(),
@@ -292,6 +342,7 @@ impl CenterNetDetector {
             plans: Mutex::new(HashMap::new()),
             native,
             zoom_calibration: None,
+            gain,
         };
         // Fail now on a model tract cannot run or with other outputs.
         let probe = INPUT_MULTIPLE * 2;
@@ -338,6 +389,12 @@ impl CenterNetDetector {
     /// The decoding settings.
     pub fn config(&self) -> &CenterNetConfig {
         &self.config
+    }
+
+    /// The box gain's terms `[a_w, b_w, a_h, b_h]` applied per heat-map channel
+    /// ([`CenterNetConfig::box_gain`], [`box_factor`]).
+    pub fn box_gain(&self) -> [[f64; 4]; CLASSES] {
+        self.gain
     }
 
     fn run_error(&self, e: impl std::fmt::Display) -> Error {
@@ -619,7 +676,10 @@ impl CenterNetDetector {
         let (w, h) = (f64::from(image.width()), f64::from(image.height()));
         Ok(out
             .into_iter()
-            .filter_map(|c| {
+            .filter_map(|mut c| {
+                let (gw, gh) = box_factor(&self.gain[c.class], c.w, c.h);
+                c.w *= gw;
+                c.h *= gh;
                 let x0 = (c.cx - c.w / 2.0).clamp(0.0, w);
                 let y0 = (c.cy - c.h / 2.0).clamp(0.0, h);
                 let x1 = (c.cx + c.w / 2.0).clamp(0.0, w);

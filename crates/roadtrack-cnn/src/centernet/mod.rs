@@ -23,8 +23,8 @@ mod tests;
 mod views;
 
 pub use detector::{
-    CenterNetConfig, CenterNetDense, CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU,
-    default_model_path,
+    BOX_GAIN_KEY, BOX_GAIN_REF_PX, BOX_GAIN_SIZE_RANGE_PX, CenterNetConfig, CenterNetDense,
+    CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, box_factor, default_model_path,
 };
 pub use views::{
     ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, flip_input,
@@ -260,6 +260,90 @@ pub fn read_weights_any(path: &Path) -> Result<CenterNetWeights> {
     }
     let text = std::fs::read_to_string(path).map_err(|e| roadtrack::Error::io(path, e))?;
     CenterNetWeights::from_json(&text).map_err(|e| roadtrack::Error::format(path, e.to_string()))
+}
+
+/// The box gain of the model `proto` (at `path`): its [`BOX_GAIN_KEY`] metadata as the
+/// terms `[a_w, b_w, a_h, b_h]` per heat-map channel, all 0 (factors of 1) without the key.
+///
+/// # Errors
+/// [`roadtrack::Error::Format`] naming the file when the value is not what
+/// [`parse_box_gain`] reads.
+pub(crate) fn box_gain_of(proto: &pb::ModelProto, path: &Path) -> Result<[[f64; 4]; CLASSES]> {
+    let Some(text) = super::onnx::metadata(proto, BOX_GAIN_KEY) else {
+        return Ok([[0.0; 4]; CLASSES]);
+    };
+    parse_box_gain(text).map_err(|e| {
+        super::onnx::model_error(path, format!("metadata `{BOX_GAIN_KEY}` = `{text}`: {e}"))
+    })
+}
+
+/// The largest `|a|` or `|b|` a box gain may have: at the reference size a factor between
+/// `e^-0.5` and `e^0.5` (0.61–1.65).
+// Choice: a box off by more than that is not a calibration of the network but another
+// network; the bound also catches factors given where their logarithms belong (1.1 for
+// 0.095).
+pub const BOX_GAIN_MAX_TERM: f64 = 0.5;
+
+/// `a_w,b_w,a_h,b_h,…` (four terms per heat-map channel, [`box_factor`]) → the terms.
+///
+/// # Errors
+/// A message when there are not `4 × CLASSES` numbers or one is not finite and within
+/// ±[`BOX_GAIN_MAX_TERM`].
+pub fn parse_box_gain(text: &str) -> std::result::Result<[[f64; 4]; CLASSES], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite() && x.abs() <= BOX_GAIN_MAX_TERM)
+                .ok_or_else(|| {
+                    format!("`{}` is not a number within ±{BOX_GAIN_MAX_TERM}", t.trim())
+                })
+        })
+        .collect::<std::result::Result<_, _>>()?;
+    if v.len() != 4 * CLASSES {
+        return Err(format!(
+            "expected {} numbers (a_w, b_w, a_h, b_h for each of {}), got {}",
+            4 * CLASSES,
+            CLASS_NAMES.join(", "),
+            v.len()
+        ));
+    }
+    Ok(std::array::from_fn(|k| {
+        std::array::from_fn(|j| v[4 * k + j])
+    }))
+}
+
+/// Copies the learned detector at `input` to `output` (atomically) with `gain` as its
+/// [`BOX_GAIN_KEY`] metadata, replacing any it had; the network is untouched.
+///
+/// # Errors
+/// `input` is not a learned detector ([`is_centernet_file`]) or unreadable; a term is not
+/// finite and within ±[`BOX_GAIN_MAX_TERM`]; `output` cannot be written.
+pub fn write_box_gain(input: &Path, output: &Path, gain: &[[f64; 4]; CLASSES]) -> Result<()> {
+    // `{}` of an f64 is the shortest text that parses back to the same value.
+    let value = gain
+        .iter()
+        .flatten()
+        .map(|g| format!("{g}"))
+        .collect::<Vec<_>>()
+        .join(",");
+    parse_box_gain(&value)
+        .map_err(|e| roadtrack::Error::Invalid(format!("box gain {value}: {e}")))?;
+    let (mut proto, _) = super::onnx::read_image_model(input)?;
+    if super::onnx::metadata(&proto, "roadtrack.kind") != Some(KIND) {
+        return Err(super::onnx::model_error(
+            input,
+            "not a roadtrack learned detector (no `roadtrack.kind = centernet` metadata)",
+        ));
+    }
+    proto.metadata_props.retain(|e| e.key != BOX_GAIN_KEY);
+    proto.metadata_props.push(pb::StringStringEntryProto {
+        key: BOX_GAIN_KEY.into(),
+        value,
+    });
+    roadtrack::io::atomic::write_bytes_atomic(output, &proto.encode_to_vec())
 }
 
 /// Writes `net` as ONNX to `path` (atomically).

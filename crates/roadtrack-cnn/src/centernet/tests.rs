@@ -784,11 +784,146 @@ fn weights_read_back_from_onnx_are_the_weights_written() -> Result<()> {
     let json = dir.path().join("det.json");
     std::fs::write(&json, w.to_json()?).map_err(|e| Error::io(&json, e))?;
     assert_eq!(read_weights_any(&json)?, w);
-    // The shipped model: written back, the same bytes.
+    // The shipped model: written back with its box gain, the same bytes.
     let shipped_bytes = std::fs::read(shipped()).map_err(|e| Error::io(shipped(), e))?;
     let read = read_weights(&shipped())?;
     assert_eq!(read.shape, CenterNetShape::default());
-    assert_eq!(onnx_bytes(&read)?, shipped_bytes);
+    let gain = CenterNetDetector::load(&shipped(), &CenterNetConfig::default())?.box_gain();
+    let plain = dir.path().join("plain.onnx");
+    write_onnx(&plain, &read)?;
+    if gain == [[0.0; 4]; CLASSES] {
+        assert_eq!(onnx_bytes(&read)?, shipped_bytes);
+    } else {
+        let gained = dir.path().join("gained.onnx");
+        write_box_gain(&plain, &gained, &gain)?;
+        let bytes = std::fs::read(&gained).map_err(|e| Error::io(&gained, e))?;
+        assert_eq!(bytes, shipped_bytes);
+    }
+    Ok(())
+}
+
+/// A held-out oblique intersection render (seed 21: cars and pedestrians).
+fn held_out_oblique_frame() -> Result<RgbImage> {
+    use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+    let sim = SimConfig {
+        scene: SceneKind::Intersection,
+        view: ViewKind::Oblique,
+        frames: 1,
+        ..SimConfig::default()
+    };
+    Ok(roadtrack_sim::simulate_in_memory(&sim, 21)?.frames[0]
+        .image
+        .clone())
+}
+
+#[test]
+fn the_box_gain_scales_each_class_s_boxes_about_their_centres_and_keeps_the_set() -> Result<()> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let raw_cfg = CenterNetConfig {
+        box_gain: false,
+        ..CenterNetConfig::default()
+    };
+    let raw = CenterNetDetector::load(&shipped(), &raw_cfg)?;
+    assert_eq!(raw.box_gain(), [[0.0; 4]; CLASSES]);
+    // Distinct terms per class and side, of both signs.
+    let gain = [
+        [0.1, -0.2, -0.05, 0.15],
+        [0.2, 0.1, 0.3, -0.1],
+        [-0.2, 0.05, 0.04, 0.0],
+        [0.25, -0.3, 0.4, -0.15],
+    ];
+    let model = dir.path().join("gained.onnx");
+    write_box_gain(&shipped(), &model, &gain)?;
+    // Written twice: the key is replaced, not repeated.
+    write_box_gain(&model, &model, &gain)?;
+    let (proto, _) = crate::onnx::read_image_model(&model)?;
+    let keys = proto
+        .metadata_props
+        .iter()
+        .filter(|e| e.key == BOX_GAIN_KEY);
+    assert_eq!(keys.count(), 1);
+    let gained = CenterNetDetector::load(&model, &CenterNetConfig::default())?;
+    assert_eq!(gained.box_gain(), gain);
+    let image = held_out_oblique_frame()?;
+    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    let a = raw.detect_boxes(&image)?;
+    let b = gained.detect_boxes(&image)?;
+    assert_eq!(a.len(), b.len());
+    let inside = |x: &roadtrack::geometry::BBox| {
+        x.left > 0.0 && x.top > 0.0 && x.right() < w && x.top + x.height < h
+    };
+    let mut checked = [0usize; CLASSES];
+    for ((ba, ca, sa), (bb, cb, sb)) in a.iter().zip(&b) {
+        assert_eq!((ca, sa), (cb, sb));
+        let k = class_channel(ca).expect("a detector class");
+        if !(inside(ba) && inside(bb)) {
+            continue;
+        }
+        checked[k] += 1;
+        let (p, q) = (ba.centre(), bb.centre());
+        assert!((p.x - q.x).abs() < 1e-9 && (p.y - q.y).abs() < 1e-9);
+        // e^(a + b ln(s / 32)), s = √(w h) of the network's box clamped to 8–128 px.
+        let s = (ba.width * ba.height).sqrt().clamp(8.0, 128.0);
+        let l = (s / 32.0).ln();
+        let (gw, gh) = (
+            (gain[k][0] + gain[k][1] * l).exp(),
+            (gain[k][2] + gain[k][3] * l).exp(),
+        );
+        assert!(
+            (bb.width / ba.width - gw).abs() < 1e-9,
+            "{k}: {ba:?} → {bb:?}"
+        );
+        assert!(
+            (bb.height / ba.height - gh).abs() < 1e-9,
+            "{k}: {ba:?} → {bb:?}"
+        );
+    }
+    // Cars and pedestrians are in the frame.
+    assert!(checked[0] >= 3 && checked[3] >= 3, "{checked:?}");
+    // Off, the gained model gives the raw boxes.
+    let off = CenterNetDetector::load(&model, &raw_cfg)?;
+    assert_eq!(off.detect_boxes(&image)?, a);
+    Ok(())
+}
+
+#[test]
+fn a_bad_box_gain_is_refused_naming_the_file_and_the_key() -> Result<()> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let zeros = |last: &str| format!("{}{last}", "0,".repeat(15));
+    for (value, needle) in [
+        ("0,0,0".to_string(), "expected 16 numbers"),
+        (zeros("0.7"), "`0.7` is not a number within ±0.5"),
+        (zeros("x"), "`x` is not a number within ±0.5"),
+    ] {
+        let (mut proto, _) = crate::onnx::read_image_model(&shipped())?;
+        proto.metadata_props.retain(|e| e.key != BOX_GAIN_KEY);
+        proto
+            .metadata_props
+            .push(tract_onnx::pb::StringStringEntryProto {
+                key: BOX_GAIN_KEY.into(),
+                value: value.clone(),
+            });
+        let path = dir.path().join("bad_gain.onnx");
+        std::fs::write(&path, proto.encode_to_vec()).map_err(|e| Error::io(&path, e))?;
+        let msg = CenterNetDetector::load(&path, &CenterNetConfig::default())
+            .expect_err(&value)
+            .to_string();
+        assert!(
+            msg.contains("bad_gain.onnx") && msg.contains(BOX_GAIN_KEY),
+            "{msg}"
+        );
+        assert!(msg.contains(needle), "{needle}: {msg}");
+    }
+    // Not a learned detector, or a term that is not finite: refused.
+    let out = dir.path().join("out.onnx");
+    let msg = write_box_gain(&fixture("tiny_yolo.onnx"), &out, &[[0.0; 4]; CLASSES])
+        .expect_err("tiny_yolo")
+        .to_string();
+    assert!(msg.contains("tiny_yolo.onnx"), "{msg}");
+    let mut gain = [[0.0; 4]; CLASSES];
+    gain[2][1] = f64::NAN;
+    assert!(write_box_gain(&shipped(), &out, &gain).is_err());
+    assert!(!out.exists());
     Ok(())
 }
 

@@ -60,6 +60,15 @@ pub struct DetectorTrainArgs {
     /// car, bus/truck, bicycle/motorcycle and pedestrian [default: 1,1,1,1].
     #[arg(long, value_name = "W,W,W,W", value_delimiter = ',')]
     pub box_class_weights: Option<Vec<f32>>,
+    /// --detector: no training; copy the learned detector given as --init (.onnx) to -o with
+    /// this box gain in its metadata: a_w, b_w, a_h, b_h for car, bus/truck,
+    /// bicycle/motorcycle and pedestrian (16 numbers; each side's factor is e^(a + b
+    /// ln(√(w h) / 32))), as scripts/box_gain.py measures them (docs/DETECTION.md "Box
+    /// gain"). A list starting with a minus sign goes as `--box-gain=-0.1,…`.
+    #[arg(long, value_name = "A,B,…", value_delimiter = ',', allow_negative_numbers = true,
+          requires = "init",
+          conflicts_with_all = ["from_weights", "average", "weights_out"])]
+    pub box_gain: Option<Vec<f64>>,
     /// --detector: write every step's losses to this CSV (step, learning_rate, heat, boxes,
     /// total).
     #[arg(long, value_name = "F.csv")]
@@ -83,6 +92,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--clip-to-crop", a.clip_to_crop),
             ("--edge-crops", a.edge_crops.is_some()),
             ("--box-class-weights", a.box_class_weights.is_some()),
+            ("--box-gain", a.box_gain.is_some()),
         ],
         "only with --detector",
     )
@@ -132,10 +142,43 @@ fn average_weights(
     Ok(())
 }
 
+/// `--box-gain W,H,…`: the model of `--init` written to `output` with the gains in its
+/// metadata.
+#[cfg(feature = "cnn")]
+fn set_box_gain(
+    init: Option<&std::path::Path>,
+    gain: &[f64],
+    output: &std::path::Path,
+    ui: &Ui,
+) -> Result<()> {
+    use anyhow::Context as _;
+    let Some(init) = init else {
+        return Err(crate::flags::invalid(
+            "--box-gain needs the model to copy: --init F.onnx",
+        ));
+    };
+    let text: Vec<String> = gain.iter().map(f64::to_string).collect();
+    let gain = roadtrack_cnn::centernet::parse_box_gain(&text.join(","))
+        .map_err(|e| crate::flags::invalid(format!("--box-gain: {e}")))?;
+    roadtrack_cnn::centernet::write_box_gain(init, output, &gain)
+        .with_context(|| format!("writing {}", output.display()))?;
+    ui.info(format!(
+        "wrote {}: {} with box gain {}",
+        output.display(),
+        init.display(),
+        text.join(",")
+    ));
+    Ok(())
+}
+
 /// Without the `learn` feature there is no trainer (`--from-weights` still converts when
 /// the `cnn` feature is on).
 #[cfg(not(feature = "learn"))]
 pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
+    #[cfg(feature = "cnn")]
+    if let Some(gain) = &args.detector_args.box_gain {
+        return set_box_gain(args.detector_args.init.as_deref(), gain, &args.output, ui);
+    }
     #[cfg(feature = "cnn")]
     if let Some(path) = &args.detector_args.from_weights {
         return convert_weights(path, &args.output, ui);
@@ -160,6 +203,9 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
     use std::io::Write as _;
 
     let d = &args.detector_args;
+    if let Some(gain) = &d.box_gain {
+        return set_box_gain(d.init.as_deref(), gain, &args.output, ui);
+    }
     if let Some(path) = &d.from_weights {
         return convert_weights(path, &args.output, ui);
     }
