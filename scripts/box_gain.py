@@ -10,7 +10,7 @@ length, aerial scale and rotation, density, walkers, noise, shadows, sun; seeds 
 0–3, use), runs `roadtrack detect --detector cnn --no-box-gain` on them, matches each
 truth box at least 90 % visible to a detection greedily by IoU ≥ 0.3, and fits per
 detected class and side the line ln(true / detected) = a + b ln(s / 32), s = √(w h) of the
-detected box clamped to 8–128 px (least absolute deviations, so a few wrong matches do not
+detected box clamped to 8–64 px (least absolute deviations, so a few wrong matches do not
 pull it), as the detector applies it (`centernet::box_factor`). It prints, per class and by
 view, the matches, the median ratios and the fitted terms, and last the `roadtrack train
 --detector --box-gain` command that writes the terms of the classes in --classes into a
@@ -81,7 +81,7 @@ sun_elevation_deg = {rng.uniform(25.0, 80.0):.2f}
 
 def ratios(seq, dets_path, min_visibility):
     """(detected class, ln(s / 32), ln(w_true / w), ln(h_true / h)) of each matched truth
-    box, s = √(w h) of the detection clamped to 8–128 px."""
+    box, s = √(w h) of the detection clamped to 8–64 px."""
     gt = read_gt(seq)
     dets = read_ours(dets_path, with_class=True)
     out = []
@@ -99,7 +99,7 @@ def ratios(seq, dets_path, min_visibility):
             used_g.add(i)
             used_d.add(j)
             (_, _, gw, gh), ((_, _, dw, dh), cls) = g[i][1], d[j]
-            size = min(max(math.sqrt(dw * dh), 8.0), 128.0)
+            size = min(max(math.sqrt(dw * dh), 8.0), 64.0)
             out.append((cls, math.log(size / 32.0), math.log(gw / dw), math.log(gh / dh)))
     return out
 

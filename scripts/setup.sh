@@ -19,7 +19,7 @@ set -euo pipefail
 DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4 4000:3:11000:3e-4}"
 # Then the box gain (docs/DETECTION.md "Box gain"): the terms `python3 scripts/box_gain.py`
 # measured on the last stage's network, written into the model's metadata.
-DETECTOR_BOX_GAIN="${DETECTOR_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.027,-0.169,-0.003,-0.128}"
+DETECTOR_BOX_GAIN="${DETECTOR_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.026,-0.17,-0.003,-0.128}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"

@@ -862,8 +862,8 @@ fn the_box_gain_scales_each_class_s_boxes_about_their_centres_and_keeps_the_set(
         checked[k] += 1;
         let (p, q) = (ba.centre(), bb.centre());
         assert!((p.x - q.x).abs() < 1e-9 && (p.y - q.y).abs() < 1e-9);
-        // e^(a + b ln(s / 32)), s = √(w h) of the network's box clamped to 8–128 px.
-        let s = (ba.width * ba.height).sqrt().clamp(8.0, 128.0);
+        // e^(a + b ln(s / 32)), s = √(w h) of the network's box clamped to 8–64 px.
+        let s = (ba.width * ba.height).sqrt().clamp(8.0, 64.0);
         let l = (s / 32.0).ln();
         let (gw, gh) = (
             (gain[k][0] + gain[k][1] * l).exp(),
