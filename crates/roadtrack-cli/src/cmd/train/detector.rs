@@ -142,7 +142,7 @@ fn average_weights(
     Ok(())
 }
 
-/// `--box-gain W,H,…`: the model of `--init` written to `output` with the gains in its
+/// `--box-gain A,B,…`: the model of `--init` written to `output` with the gain in its
 /// metadata.
 #[cfg(feature = "cnn")]
 fn set_box_gain(
