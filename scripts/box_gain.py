@@ -12,7 +12,8 @@ truth box at least 90 % visible to a detection greedily by IoU ≥ 0.3, and fits
 detected class and side the line ln(true / detected) = a + b ln(s / 32), s = √(w h) of the
 detected box clamped to 8–64 px (least absolute deviations, so a few wrong matches do not
 pull it), as the detector applies it (`centernet::box_factor`). It prints, per class and by
-view, the matches, the median ratios and the fitted terms, and last the `roadtrack train
+view, the matches, the median ratios and the fitted terms; per class and detected height,
+the median ratios; and last the `roadtrack train
 --detector --box-gain` command that writes the terms of the classes in --classes into a
 model (0, no change, for the others).
 
@@ -80,8 +81,8 @@ sun_elevation_deg = {rng.uniform(25.0, 80.0):.2f}
 
 
 def ratios(seq, dets_path, min_visibility):
-    """(detected class, ln(s / 32), ln(w_true / w), ln(h_true / h)) of each matched truth
-    box, s = √(w h) of the detection clamped to 8–64 px."""
+    """(detected class, ln(s / 32), ln(w_true / w), ln(h_true / h), detected height) of
+    each matched truth box, s = √(w h) of the detection clamped to 8–64 px."""
     gt = read_gt(seq)
     dets = read_ours(dets_path, with_class=True)
     out = []
@@ -100,7 +101,7 @@ def ratios(seq, dets_path, min_visibility):
             used_d.add(j)
             (_, _, gw, gh), ((_, _, dw, dh), cls) = g[i][1], d[j]
             size = min(max(math.sqrt(dw * dh), 8.0), 64.0)
-            out.append((cls, math.log(size / 32.0), math.log(gw / dw), math.log(gh / dh)))
+            out.append((cls, math.log(size / 32.0), math.log(gw / dw), math.log(gh / dh), dh))
     return out
 
 
@@ -180,6 +181,16 @@ def main():
             if view == "all" and cls in wanted:
                 fitted = [round(v, 3) for v in (aw, bw, ah, bh)]
         terms += fitted
+    print()
+    print("| detected class | detected height (px) | matches | median ln(w_true / w) "
+          "| median ln(h_true / h) |")
+    print("| --- | --- | ---: | ---: | ---: |")
+    for cls in CHANNELS:
+        for lo, hi in ((0, 15), (15, 25), (25, 40), (40, 70), (70, math.inf)):
+            r = [x for x in rows if x[1] == cls and lo <= x[5] < hi]
+            if len(r) >= 30:
+                print(f"| {cls} | {lo}–{hi} | {len(r)} | {statistics.median(x[3] for x in r):+.3f} "
+                      f"| {statistics.median(x[4] for x in r):+.3f} |")
     print()
     print("roadtrack train --detector --init MODEL.onnx --box-gain="
           + ",".join(f"{t:g}" for t in terms) + " -o OUT.onnx")
