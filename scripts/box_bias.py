@@ -23,7 +23,7 @@ from collections import defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from detection_compare import (  # noqa: E402
-    CLASSES, add_sequence_arguments, iou, read_gt, read_ours, sequence)
+    CLASSES, add_sequence_arguments, greedy_match, read_gt, read_ours, sequence)
 
 
 def errors(gt, dets, n_frames):
@@ -33,19 +33,7 @@ def errors(gt, dets, n_frames):
     for frame in range(1, n_frames + 1):
         g = [t for t in gt.get(frame, []) if t[3] >= 0.5]
         d = dets.get(frame, [])
-        pairs = sorted(
-            ((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g) for j, db in enumerate(d)),
-            reverse=True,
-        )
-        match = {}
-        used = set()
-        for v, i, j in pairs:
-            if v < 0.3:
-                break
-            if i in match or j in used:
-                continue
-            match[i] = (j, v)
-            used.add(j)
+        match = {i: (j, v) for i, j, v in greedy_match([t[1] for t in g], d, 0.3)}
         for i, (_, (gx, gy, gw, gh), cls, _) in enumerate(g):
             key = (CLASSES.get(cls, str(cls)), "wide" if gw >= gh else "tall")
             a = acc[key]

@@ -33,7 +33,7 @@ import sys
 import tomllib
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from detection_compare import iou, read_gt, read_ours  # noqa: E402
+from detection_compare import greedy_match, read_gt, read_ours  # noqa: E402
 
 # The network's heat-map channels as `detect` names their class, in --box-gain order.
 CHANNELS = ["car", "truck", "motorcycle", "pedestrian"]
@@ -89,16 +89,7 @@ def ratios(seq, dets_path, min_visibility):
     for frame, g in gt.items():
         g = [t for t in g if t[3] >= min_visibility]
         d = dets.get(frame, [])
-        pairs = sorted(((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g)
-                        for j, (db, _) in enumerate(d)), reverse=True)
-        used_g, used_d = set(), set()
-        for v, i, j in pairs:
-            if v < 0.3:
-                break
-            if i in used_g or j in used_d:
-                continue
-            used_g.add(i)
-            used_d.add(j)
+        for i, j, _ in greedy_match([t[1] for t in g], [x[0] for x in d], 0.3):
             (_, _, gw, gh), ((_, _, dw, dh), cls) = g[i][1], d[j]
             size = min(max(math.sqrt(dw * dh), 8.0), 64.0)
             out.append((cls, math.log(size / 32.0), math.log(gw / dw), math.log(gh / dh), dh))

@@ -133,19 +133,10 @@ def score_groups(gt, dets, n_frames, size):
     for frame in range(1, n_frames + 1):
         g = gt.get(frame, [])
         d = dets.get(frame, [])
-        pairs = sorted(
-            ((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g)
-             for j, (db, _) in enumerate(d)),
-            reverse=True,
-        )
-        used_g, used_d = set(), set()
-        for v, i, j in pairs:
-            if v < 0.5:
-                break
-            if i in used_g or j in used_d:
-                continue
-            used_g.add(i)
-            used_d.add(j)
+        matches = greedy_match([t[1] for t in g], [x[0] for x in d], 0.5)
+        used_g = {i for i, _, _ in matches}
+        used_d = {j for _, j, _ in matches}
+        for i, j, v in matches:
             if g[i][3] >= 0.5 and g[i][2] != 1:
                 (gx, gy, gw, gh), (dx, dy, dw, dh) = g[i][1], d[j][0]
                 ious.append(v)
@@ -207,6 +198,23 @@ def iou(a, b):
     return inter / union if union > 0 else 0.0
 
 
+def greedy_match(truth_boxes, det_boxes, min_iou):
+    """One-to-one matches of truth boxes to detections, best IoU first, down to `min_iou`:
+    [(truth index, detection index, IoU)] in the order they were made."""
+    pairs = sorted(((iou(gb, db), i, j) for i, gb in enumerate(truth_boxes)
+                    for j, db in enumerate(det_boxes)), reverse=True)
+    used_g, used_d, out = set(), set(), []
+    for v, i, j in pairs:
+        if v < min_iou:
+            break
+        if i in used_g or j in used_d:
+            continue
+        used_g.add(i)
+        used_d.add(j)
+        out.append((i, j, v))
+    return out
+
+
 def score(gt, dets, stopped, n_frames):
     hit = defaultdict(int)
     tot = defaultdict(int)
@@ -215,19 +223,9 @@ def score(gt, dets, stopped, n_frames):
         g = gt.get(frame, [])
         d = dets.get(frame, [])
         n_det += len(d)
-        pairs = sorted(
-            ((iou(gb, db), i, j) for i, (_, gb, _, _) in enumerate(g) for j, db in enumerate(d)),
-            reverse=True,
-        )
-        used_g, used_d = set(), set()
-        for v, i, j in pairs:
-            if v < 0.5:
-                break
-            if i in used_g or j in used_d:
-                continue
-            used_g.add(i)
-            used_d.add(j)
-        n_tp += len(used_d)
+        matches = greedy_match([t[1] for t in g], d, 0.5)
+        used_g = {i for i, _, _ in matches}
+        n_tp += len(matches)
         for i, (oid, _, cls, vis) in enumerate(g):
             if vis < 0.5:
                 continue
