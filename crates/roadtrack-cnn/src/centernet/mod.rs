@@ -287,21 +287,31 @@ pub const BOX_GAIN_MAX_TERM: f64 = 0.5;
 /// `a_w,b_w,a_h,b_h,…` (four terms per heat-map channel, [`box_factor`]) → the terms.
 ///
 /// # Errors
-/// A message when there are not `4 × CLASSES` numbers or one is not finite and within
-/// ±[`BOX_GAIN_MAX_TERM`].
+/// As [`box_gain_terms`], and a message naming an item that is not a number.
 pub fn parse_box_gain(text: &str) -> std::result::Result<[[f64; 4]; CLASSES], String> {
     let v: Vec<f64> = text
         .split(',')
         .map(|t| {
             t.trim()
                 .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite() && x.abs() <= BOX_GAIN_MAX_TERM)
-                .ok_or_else(|| {
-                    format!("`{}` is not a number within ±{BOX_GAIN_MAX_TERM}", t.trim())
-                })
+                .map_err(|_| format!("`{}` is not a number within ±{BOX_GAIN_MAX_TERM}", t.trim()))
         })
         .collect::<std::result::Result<_, _>>()?;
+    box_gain_terms(&v)
+}
+
+/// `4 × CLASSES` numbers, four per heat-map channel ([`box_factor`]) → the terms.
+///
+/// # Errors
+/// A message when one is not finite and within ±[`BOX_GAIN_MAX_TERM`], or there are not
+/// `4 × CLASSES` of them.
+pub fn box_gain_terms(v: &[f64]) -> std::result::Result<[[f64; 4]; CLASSES], String> {
+    if let Some(x) = v
+        .iter()
+        .find(|x| !(x.is_finite() && x.abs() <= BOX_GAIN_MAX_TERM))
+    {
+        return Err(format!("`{x}` is not a number within ±{BOX_GAIN_MAX_TERM}"));
+    }
     if v.len() != 4 * CLASSES {
         return Err(format!(
             "expected {} numbers (a_w, b_w, a_h, b_h for each of {}), got {}",
@@ -322,6 +332,8 @@ pub fn parse_box_gain(text: &str) -> std::result::Result<[[f64; 4]; CLASSES], St
 /// `input` is not a learned detector ([`is_centernet_file`]) or unreadable; a term is not
 /// finite and within ±[`BOX_GAIN_MAX_TERM`]; `output` cannot be written.
 pub fn write_box_gain(input: &Path, output: &Path, gain: &[[f64; 4]; CLASSES]) -> Result<()> {
+    box_gain_terms(gain.as_flattened())
+        .map_err(|e| roadtrack::Error::Invalid(format!("box gain {gain:?}: {e}")))?;
     // `{}` of an f64 is the shortest text that parses back to the same value.
     let value = gain
         .iter()
@@ -329,8 +341,6 @@ pub fn write_box_gain(input: &Path, output: &Path, gain: &[[f64; 4]; CLASSES]) -
         .map(|g| format!("{g}"))
         .collect::<Vec<_>>()
         .join(",");
-    parse_box_gain(&value)
-        .map_err(|e| roadtrack::Error::Invalid(format!("box gain {value}: {e}")))?;
     let (mut proto, _) = super::onnx::read_image_model(input)?;
     if super::onnx::metadata(&proto, "roadtrack.kind") != Some(KIND) {
         return Err(super::onnx::model_error(

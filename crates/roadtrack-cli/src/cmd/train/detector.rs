@@ -157,11 +157,11 @@ fn set_box_gain(
             "--box-gain needs the model to copy: --init F.onnx",
         ));
     };
-    let text: Vec<String> = gain.iter().map(f64::to_string).collect();
-    let gain = roadtrack_cnn::centernet::parse_box_gain(&text.join(","))
+    let terms = roadtrack_cnn::centernet::box_gain_terms(gain)
         .map_err(|e| crate::flags::invalid(format!("--box-gain: {e}")))?;
-    roadtrack_cnn::centernet::write_box_gain(init, output, &gain)
+    roadtrack_cnn::centernet::write_box_gain(init, output, &terms)
         .with_context(|| format!("writing {}", output.display()))?;
+    let text: Vec<String> = gain.iter().map(f64::to_string).collect();
     ui.info(format!(
         "wrote {}: {} with box gain {}",
         output.display(),
