@@ -348,6 +348,12 @@ pub struct DetectorArgs {
     /// never move. Off by default.
     #[arg(long, value_name = "FRACTION")]
     pub motion_gate: Option<f64>,
+    /// Also find pedestrians too small for the detector (1–2 px walkers seen from a drone
+    /// or a high pole) as dots of the difference from a background model learnt from the
+    /// input; boxed at a person's footprint. With --calibration, only where a footprint is
+    /// under 2 px. Off by default.
+    #[arg(long)]
+    pub dots: bool,
     #[command(flatten)]
     pub onnx: crate::onnx_detector::OnnxArgs,
 }
@@ -384,6 +390,11 @@ impl DetectorArgs {
                 if self.motion_gate.is_some() {
                     return Err(crate::flags::conflict(
                         "--motion-gate needs --detector cnn, onnx or file",
+                    ));
+                }
+                if self.dots {
+                    return Err(crate::flags::conflict(
+                        "--dots needs --detector (background, cnn, onnx or file)",
                     ));
                 }
                 return Ok(None);
@@ -425,8 +436,10 @@ impl DetectorArgs {
                         "--detections needs --detector file, not --detector background",
                     ));
                 }
-                // Never gated (refused above), so `background` is not needed below.
-                return Ok(Some(DetectorSpec::Background(background()?)));
+                // Never gated (refused above).
+                let cfg = background()?;
+                let spec = DetectorSpec::Background(cfg.clone());
+                return self.with_dots(spec, calibration, || Ok(cfg));
             }
             DetectorArg::File => {
                 let path = match &self.detections {
@@ -460,15 +473,31 @@ impl DetectorArgs {
             }
         };
         let Some(mut gate) = gate else {
-            return Ok(Some(spec));
+            return self.with_dots(spec, calibration, background);
         };
         if kind == DetectorArg::Cnn {
             gate.nested = self.onnx.gate_nested();
         }
-        Ok(Some(DetectorSpec::MotionGated(
+        let cfg = background()?;
+        let gated = DetectorSpec::MotionGated(Box::new(spec), cfg.clone(), gate);
+        self.with_dots(gated, calibration, || Ok(cfg))
+    }
+
+    /// `spec` with `--dots` added when asked for.
+    fn with_dots(
+        &self,
+        spec: roadtrack::detect::DetectorSpec,
+        calibration: Option<&roadtrack::calibration::Calibration>,
+        background: impl FnOnce() -> Result<roadtrack::detect::background::BackgroundDetectorConfig>,
+    ) -> Result<Option<roadtrack::detect::DetectorSpec>> {
+        if !self.dots {
+            return Ok(Some(spec));
+        }
+        Ok(Some(roadtrack::detect::DetectorSpec::WithDots(
             Box::new(spec),
             background()?,
-            gate,
+            roadtrack::detect::dots::DotConfig::default(),
+            calibration.map(|c| Box::new(c.clone())),
         )))
     }
 }

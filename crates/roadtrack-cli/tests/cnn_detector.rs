@@ -194,6 +194,92 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     }
 }
 
+/// `--dots` on a simulated aerial crossing (walkers of 1–2 px, which the network does not
+/// box): the network's boxes and, added, about as many pedestrians as the truth has
+/// walkers; with a calibration in which a walker's footprint is 3.8 px (0.1 m/px) none is
+/// looked for and the output is the network's byte for byte.
+#[test]
+fn dots_add_the_walkers_too_small_for_the_network() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    let o = bin()
+        .args(["-q", "simulate", "--scene", "crossing", "--view", "aerial"])
+        .args(["--frames", "20", "--seed", "7", "-o"])
+        .arg(&seq)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let detect = |extra: &[&str], name: &str| -> String {
+        let out = dir.path().join(name);
+        let o = bin()
+            .arg("detect")
+            .arg(&seq)
+            .args(["--detector", "cnn", "--no-flip"])
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).expect("read output")
+    };
+    let plain = detect(&[], "plain.csv");
+    let cal = seq.join("calibration.toml");
+    let cal = cal.to_str().expect("a UTF-8 temporary path");
+    let dots = detect(&["--dots", "--calibration", cal], "dots.csv");
+    // (frame and box, class): the ids are renumbered, and an area column comes with the
+    // dots.
+    let rows = |text: &str| -> Vec<(String, String)> {
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+        let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+        let (class, score) = (col("class"), col("score"));
+        lines
+            .map(|l| {
+                let c: Vec<&str> = l.split(',').collect();
+                let key = format!("{},{},{}", c[0], c[2..9].join(","), c[score]);
+                (key, c[class].to_owned())
+            })
+            .collect()
+    };
+    let (p, d) = (rows(&plain), rows(&dots));
+    for r in &p {
+        assert!(d.contains(r), "{r:?} not in the output with dots");
+    }
+    let walkers_found = d.len() - p.len();
+    assert!(
+        d[..]
+            .iter()
+            .filter(|r| !p.contains(r))
+            .all(|r| r.1 == "pedestrian")
+    );
+    let gt = std::fs::read_to_string(seq.join("gt/gt.txt")).expect("read gt");
+    let walkers = gt
+        .lines()
+        .filter(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            c[7] == "1" && c[8].parse::<f64>().expect("visibility") >= 0.5
+        })
+        .count();
+    assert!(walkers >= 500, "{walkers} walker boxes");
+    let ratio = walkers_found as f64 / walkers as f64;
+    assert!(
+        (0.7..=1.2).contains(&ratio),
+        "{walkers_found} dots for {walkers} walkers"
+    );
+    let fine = dir.path().join("fine.toml");
+    std::fs::write(
+        &fine,
+        "metres_per_pixel = 0.1\norigin_m = [0.0, 0.0]\nrotation_deg = 0.0\n",
+    )
+    .expect("write calibration");
+    let fine = fine.to_str().expect("a UTF-8 temporary path");
+    assert_eq!(
+        detect(&["--dots", "--calibration", fine], "fine.csv"),
+        plain
+    );
+}
+
 /// Nested boxes: by default no box lies 0.7 or more inside a larger box of its group;
 /// `--keep-nested` gives those boxes back and drops nothing else, with and without the
 /// motion gate (which then applies the rule after gating).

@@ -290,6 +290,8 @@ fn flags_of_another_method_or_mode_are_usage_errors() {
             "--min-area",
         ),
         (vec!["detect", seq, "--motion-gate", "0.2"], "--motion-gate"),
+        (vec!["detect", seq, "--dots"], "--dots"),
+        (vec!["track", seq, "--method", "mrf", "--dots"], "--dots"),
         (
             vec![
                 "detect",

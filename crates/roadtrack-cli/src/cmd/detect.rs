@@ -41,7 +41,8 @@ pub struct Args {
     #[arg(long, value_enum, value_name = "S")]
     pub startup: Option<Startup>,
     /// Camera calibration TOML (as `roadtrack simulate` writes), for --split, or for
-    /// --detector cnn --zoom-small (zoom only where cars are small).
+    /// --detector cnn --zoom-small (zoom only where cars are small), or for --dots (dot boxes
+    /// at the ground scale, only where walkers are under 2 px).
     #[arg(long, value_name = "F.toml")]
     pub calibration: Option<PathBuf>,
     /// Split regions longer than one vehicle at their position into the vehicles they hold
@@ -81,7 +82,9 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
                 ("--startup", args.startup.is_some()),
                 (
                     "--calibration",
-                    args.calibration.is_some() && args.detector.onnx.zoom_small.is_none(),
+                    args.calibration.is_some()
+                        && args.detector.onnx.zoom_small.is_none()
+                        && !args.detector.dots,
                 ),
                 ("--split", args.split),
             ],

@@ -11,6 +11,7 @@ pub mod background;
 pub mod background_model;
 pub mod centernet;
 pub mod columns;
+pub mod dots;
 pub mod file;
 pub mod ghosts;
 pub mod morphology;
@@ -152,6 +153,15 @@ pub enum DetectorSpec {
         background::BackgroundDetectorConfig,
         motion_gate::MotionGateConfig,
     ),
+    /// Another detector's boxes plus the pedestrians too small for it, found as dots of
+    /// the difference from a background model with this config ([`dots::WithDots`]); the
+    /// calibration sizes their boxes and limits where they are looked for.
+    WithDots(
+        Box<DetectorSpec>,
+        background::BackgroundDetectorConfig,
+        dots::DotConfig,
+        Option<Box<crate::calibration::Calibration>>,
+    ),
 }
 
 impl std::fmt::Debug for DetectorSpec {
@@ -166,6 +176,12 @@ impl std::fmt::Debug for DetectorSpec {
                 .field(c)
                 .field(g)
                 .finish(),
+            DetectorSpec::WithDots(inner, c, d, _) => f
+                .debug_tuple("WithDots")
+                .field(inner)
+                .field(c)
+                .field(d)
+                .finish_non_exhaustive(),
         }
     }
 }
@@ -194,6 +210,17 @@ impl DetectorSpec {
                 let inner = inner.build(input, options, info)?;
                 let bg = background_on(cfg, input, options)?;
                 Box::new(motion_gate::MotionGated::new(inner, bg, gate)?)
+            }
+            DetectorSpec::WithDots(inner, cfg, dots, calibration) => {
+                dots.validate()?;
+                let inner = inner.build(input, options, info)?;
+                let bg = background_on(cfg, input, options)?;
+                Box::new(dots::WithDots::new(
+                    inner,
+                    bg,
+                    dots,
+                    calibration.map(|c| *c),
+                )?)
             }
         })
     }

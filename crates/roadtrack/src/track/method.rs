@@ -299,7 +299,9 @@ impl MethodConfig {
                 Some(Box::new(FileDetector::open(&path, info.total_frames)?))
             }
             Some(DetectorSpec::Given(d)) => Some(d),
-            Some(gated @ DetectorSpec::MotionGated(..)) => Some(gated.build(input, options, info)?),
+            Some(wrapped @ (DetectorSpec::MotionGated(..) | DetectorSpec::WithDots(..))) => {
+                Some(wrapped.build(input, options, info)?)
+            }
         };
         Ok(match self {
             MethodConfig::Relaxation { tracker, .. } => Built {
