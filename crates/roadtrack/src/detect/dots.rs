@@ -280,8 +280,8 @@ pub struct WithDots {
     background: BackgroundDetector,
     config: DotConfig,
     calibration: Option<Calibration>,
-    /// Per pixel, whether dots are looked for (made on the first frame from the
-    /// calibration; `None` without one: everywhere).
+    /// Per pixel, whether dots are looked for (from the calibration; `None` without one:
+    /// everywhere).
     allowed: Option<Vec<bool>>,
 }
 
@@ -341,7 +341,18 @@ impl WithDots {
     }
 
     /// `found` plus the dots of `frame` that no box of `found` covers; learns the frame.
+    ///
+    /// # Errors
+    /// A frame of another size than the background model's.
     fn add_dots(&mut self, frame: &Frame, mut found: FrameDetections) -> Result<FrameDetections> {
+        let expected = self.background.background().size();
+        if frame.image.dimensions() != expected {
+            return Err(Error::FrameSize {
+                frame: frame.index,
+                got: frame.image.dimensions(),
+                expected,
+            });
+        }
         let dots = find_dots(
             &frame.image,
             self.background.background().mean(),
@@ -593,6 +604,29 @@ mod tests {
             }
             assert!(out.foreground.is_some());
         }
+        Ok(())
+    }
+
+    /// A frame of another size than the model's is an error naming the frame, not a panic.
+    #[test]
+    fn a_frame_of_another_size_is_refused() -> Result<()> {
+        let frame = |index: u32, width: u32| Frame {
+            index,
+            time_s: f64::from(index) / 10.0,
+            image: RgbImage::from_pixel(width, 20, Rgb(ROAD)),
+        };
+        let still = |n: u32| frame(n, 40);
+        let bg = BackgroundDetector::bootstrap(
+            BackgroundDetectorConfig::default(),
+            (1..=5).map(|n| Ok(still(n))),
+            Some(5),
+        )?;
+        let nothing = |_: &Frame| -> Result<FrameDetections> { Ok(FrameDetections::default()) };
+        let mut dots = WithDots::new(Box::new(nothing), bg, DotConfig::default(), None)?;
+        assert!(dots.detect(&still(6))?.detections.is_empty());
+        let big = frame(7, 41);
+        let err = dots.detect(&big).expect_err("another size");
+        assert!(err.to_string().contains('7'), "{err}");
         Ok(())
     }
 
