@@ -108,22 +108,28 @@ fn detect_with_the_shipped_model_writes_classified_boxes() {
     }
 }
 
+/// `roadtrack detect INPUT --detector cnn ARGS -o OUT`; panics naming stderr when it fails.
+fn detect_cnn(input: &Path, args: &[&str], out: &Path) {
+    let o = bin()
+        .arg("detect")
+        .arg(input)
+        .args(["--detector", "cnn"])
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// `roadtrack detect` on the tiny sequence with the shipped model, `--min-score 0.05` and
 /// `extra`, writing `dir/name`; panics naming stderr when it fails. Returns the output.
 fn detect_tiny(dir: &Path, extra: &[&str], name: &str) -> PathBuf {
     let out = dir.join(name);
-    let o = bin()
-        .arg("detect")
-        .arg(fixture("tiny_sequence"))
-        .args(["--detector", "cnn", "--model"])
-        .arg(shipped_model())
-        .args(["--min-score", "0.05"])
-        .args(extra)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .expect("run");
-    assert!(o.status.success(), "{}", stderr(&o));
+    let model = shipped_model();
+    let model = model.to_str().expect("a UTF-8 model path");
+    let args = [&["--model", model, "--min-score", "0.05"][..], extra].concat();
+    detect_cnn(&fixture("tiny_sequence"), &args, &out);
     out
 }
 
@@ -211,16 +217,7 @@ fn dots_add_the_walkers_too_small_for_the_network() {
     assert!(o.status.success(), "{}", stderr(&o));
     let detect = |extra: &[&str], name: &str| -> String {
         let out = dir.path().join(name);
-        let o = bin()
-            .arg("detect")
-            .arg(&seq)
-            .args(["--detector", "cnn", "--no-flip"])
-            .args(extra)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
+        detect_cnn(&seq, &[&["--no-flip"][..], extra].concat(), &out);
         std::fs::read_to_string(out).expect("read output")
     };
     let plain = detect(&[], "plain.csv");

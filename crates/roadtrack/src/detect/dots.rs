@@ -150,7 +150,7 @@ impl DotConfig {
 /// One dot: the difference-weighted centroid of its pixels (pixel centres at `x + 0.5`) and
 /// the sum of their differences.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Dot {
+pub(crate) struct Dot {
     /// Centroid, px.
     pub centre: Point,
     /// Sum of `|ΔR| + |ΔG| + |ΔB|` over the dot's pixels.
@@ -214,12 +214,13 @@ fn blobs(w: usize, h: usize, set: impl Fn(usize) -> bool, mut f: impl FnMut(&[us
 /// The dots of `image` against the background `mean` (3 values per pixel, row-major, as
 /// [`super::background_model::BackgroundModel::mean`]), looked for where `allowed` is true
 /// (all pixels when `None`), in raster order of their first pixel: the blobs of the
-/// differing pixels that are not shadow, up to [`DotConfig::max_area_px`].
+/// differing pixels that are not shadow, up to [`DotConfig::max_area_px`]. `mean` and
+/// `allowed` must be of `image`'s size ([`WithDots`] checks each frame's first).
 // Choice: shadow pixels do not join a dot's blob, so a walker stays a dot beside its
 // shadow. Leaving out the dots whose blob with the shadow is larger than 16 px (a car's
 // pieces) was tried: on the aerial crossing it lost a fifth of the walkers, who go in
 // groups, for no precision (docs/DETECTION.md "Dots").
-pub fn find_dots(
+pub(crate) fn find_dots(
     image: &RgbImage,
     mean: &[f32],
     allowed: Option<&[bool]>,
