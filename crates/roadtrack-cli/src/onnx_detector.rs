@@ -40,6 +40,16 @@ pub enum DetrScoresArg {
     Softmax,
 }
 
+/// How the learned detector's zoomed level joins the others (`--zoom-mode`;
+/// roadtrack-cnn's `ZoomMode`, here so that the flag parses without the `cnn` feature).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ZoomModeArg {
+    /// Boxes under PX come from the enlarged frame only (a pyramid level of their own).
+    Level,
+    /// Enlarged-frame boxes are added only where the other levels have none.
+    Add,
+}
+
 /// The flags of `--detector onnx` (docs/DETECTION.md "ONNX detectors").
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct OnnxArgs {
@@ -88,12 +98,16 @@ pub struct OnnxArgs {
     /// --detector cnn: lowest score kept on the shrunk pyramid level [default: 0.3].
     #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
     pub coarse_min_score: Option<f64>,
-    /// --detector cnn: also run the network on the frame enlarged twice and add its boxes
-    /// smaller than PX (frame px) that the other levels lack, for far objects under 8 px
-    /// (4× the compute); with --calibration only the rows where a car is under PX px
-    /// [default: off].
+    /// --detector cnn: also run the network on the frame enlarged twice and take its boxes
+    /// smaller than PX (frame px) as --zoom-mode says, for far objects (4× the compute);
+    /// with --calibration only the rows where a car is under PX px [default: off].
     #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub zoom_small: Option<f64>,
+    /// --detector cnn --zoom-small: `level`, every box under PX comes from the enlarged
+    /// frame; `add`, its boxes are added only where the other levels have none
+    /// [default: level].
+    #[arg(long, value_name = "MODE", requires = "zoom_small")]
+    pub zoom_mode: Option<ZoomModeArg>,
     /// --detector cnn: keep a box lying mostly inside a larger box of its group (vehicles,
     /// pedestrians); by default it is dropped as a part of that object.
     #[arg(long)]
@@ -147,6 +161,7 @@ impl OnnxArgs {
             ("--pyramid", self.pyramid.is_some()),
             ("--coarse-min-score", self.coarse_min_score.is_some()),
             ("--zoom-small", self.zoom_small.is_some()),
+            ("--zoom-mode", self.zoom_mode.is_some()),
             ("--keep-nested", self.keep_nested),
             ("--no-flip", self.no_flip),
             ("--flip-vertical", self.flip_vertical),
@@ -167,6 +182,7 @@ impl OnnxArgs {
                         | "--pyramid"
                         | "--coarse-min-score"
                         | "--zoom-small"
+                        | "--zoom-mode"
                         | "--keep-nested"
                         | "--no-flip"
                         | "--flip-vertical"
@@ -213,6 +229,12 @@ impl OnnxArgs {
         }
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
+        }
+        if let Some(mode) = self.zoom_mode {
+            config.zoom_mode = match mode {
+                ZoomModeArg::Level => roadtrack_cnn::centernet::ZoomMode::Level,
+                ZoomModeArg::Add => roadtrack_cnn::centernet::ZoomMode::Add,
+            };
         }
         config.flip = !self.no_flip;
         config.flip_vertical = self.flip_vertical;
@@ -275,6 +297,7 @@ impl OnnxArgs {
                 ("--pyramid", self.pyramid.is_some()),
                 ("--coarse-min-score", self.coarse_min_score.is_some()),
                 ("--zoom-small", self.zoom_small.is_some()),
+                ("--zoom-mode", self.zoom_mode.is_some()),
                 ("--keep-nested", self.keep_nested),
                 ("--no-flip", self.no_flip),
                 ("--flip-vertical", self.flip_vertical),

@@ -69,6 +69,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         ][..],
         &["--detector", "background", "--zoom-small", "12"][..],
         &["--detector", "cnn", "--zoom-small", "0"][..],
+        &["--detector", "cnn", "--zoom-mode", "add"][..],
         &["--detector", "cnn", "--calibration", "c.toml"][..],
         &["--detector", "background", "--keep-nested"][..],
         &["--detector", "onnx", "--model", "m.onnx", "--no-flip"][..],
@@ -89,6 +90,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             "--keep-nested",
             "--no-flip",
             "--flip-vertical",
+            "--zoom-mode",
         ]
         .into_iter()
         .find(|f| args.contains(f))
@@ -158,9 +160,10 @@ fn motion_gate_keeps_a_subset_of_the_boxes() {
     }
 }
 
-/// `--zoom-small`: the default boxes and more (nested boxes kept); with a calibration in
-/// which no car is that small (a nadir view at 0.33 m/px: 13.6 px) nothing is enlarged and
-/// the output is the default's byte for byte.
+/// `--zoom-small`: with a calibration in which no car is that small (a nadir view at 0.33
+/// m/px: 13.6 px) nothing is enlarged and the output is the default's byte for byte;
+/// `--zoom-mode add` gives the default boxes and more (nested boxes kept); as a level (the
+/// default mode) every box under the limit is the enlarged frame's.
 #[test]
 fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -182,7 +185,10 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     assert_eq!(banded, plain);
     // Nested boxes kept: an added small box may hold a default one.
     let plain = run(&["--keep-nested"], "plain_all.csv");
-    let zoomed = run(&["--zoom-small", "12", "--keep-nested"], "zoomed.csv");
+    let zoomed = run(
+        &["--zoom-small", "12", "--zoom-mode", "add", "--keep-nested"],
+        "zoomed.csv",
+    );
     // Every default box is in the zoomed output, which has more.
     let boxes = |text: &str| -> Vec<String> {
         text.lines()
@@ -197,6 +203,30 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     assert!(z.len() > p.len(), "{} vs {}", z.len(), p.len());
     for b in &p {
         assert!(z.contains(b), "{b} not in the zoomed output");
+    }
+    // As a level: the default's boxes of 12 px or more stay, every box the add mode added
+    // is there too, and no default box under 12 px is left (each small box is the
+    // enlarged frame's).
+    let level = boxes(&run(&["--zoom-small", "12", "--keep-nested"], "level.csv"));
+    let small = |b: &String| {
+        let c: Vec<f64> = b
+            .split(',')
+            .skip(1)
+            .take(4)
+            .map(|v| v.parse().expect("a number"))
+            .collect();
+        c[2].max(c[3]) < 12.0
+    };
+    let added: Vec<&String> = z.iter().filter(|b| !p.contains(b)).collect();
+    assert!(!added.is_empty());
+    for b in p.iter().filter(|b| !small(b)).chain(added) {
+        assert!(level.contains(b), "{b} not in the level's output");
+    }
+    for b in p.iter().filter(|b| small(b)) {
+        assert!(
+            !level.contains(b),
+            "{b}: a default small box left in the level's output"
+        );
     }
 }
 

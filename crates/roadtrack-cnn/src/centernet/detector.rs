@@ -12,7 +12,7 @@ use tract_onnx::prelude::*;
 use super::native::{Isa, NativeNet};
 use super::views::{
     add_zoomed, average_flipped, decode_peaks, drop_nested, flat, flip_input, merge_levels,
-    score_map_of, shrink, zoom_rows,
+    replace_small, score_map_of, shrink, zoom_rows,
 };
 use super::{CLASSES, INPUT_MULTIPLE, KIND, STRIDE, channel_class};
 use crate::detector::decode::{Candidate, nms};
@@ -60,14 +60,16 @@ pub struct CenterNetConfig {
     /// Pyramid: a full-size vehicle detection lying at least this fraction inside a larger
     /// vehicle box of the shrunk level is dropped (a part of a large vehicle). Default 0.7.
     pub part_fraction: f64,
-    /// Zoom: when > 0, the network also runs on the frame enlarged twice (bilinear), and
-    /// its boxes whose longer side (in frame px) is below this are added where they
-    /// overlap no box of the other levels by IoU > [`ZOOM_OVERLAP_IOU`], for objects too
-    /// small for the network at full size (far vehicles of an oblique view, under 8 px).
-    /// Four times the full-size level's compute; with a calibration
-    /// ([`CenterNetDetector::with_zoom_calibration`]) only the rows where cars are that
-    /// small are enlarged. Default 0 (off).
+    /// Zoom: when > 0, the network also runs on the frame enlarged twice (bilinear), for
+    /// objects too small for it at full size (far vehicles and walkers of an oblique view),
+    /// and its boxes whose longer side (in frame px) is below this are used as
+    /// [`CenterNetConfig::zoom_mode`] says. Four times the full-size level's compute; with
+    /// a calibration ([`CenterNetDetector::with_zoom_calibration`]) only the rows where
+    /// cars are that small are enlarged. Default 0 (off).
     pub zoom_max_side: f64,
+    /// Zoom: how the zoomed level's boxes join the others'. Default
+    /// [`ZoomMode::Level`].
+    pub zoom_mode: ZoomMode,
     /// Nested boxes: a box lying mostly inside a larger box of its group (vehicles of any
     /// class, pedestrians) is dropped, after NMS, the pyramid and the zoom
     /// ([`drop_nested`]). Default 0.6 for vehicles, 0.7 for pedestrians.
@@ -88,6 +90,21 @@ pub struct CenterNetConfig {
     /// network's sizes as they come (what `scripts/box_gain.py` measures the gain on).
     /// Default true.
     pub box_gain: bool,
+}
+
+/// How the zoomed level ([`CenterNetConfig::zoom_max_side`]) joins the other levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ZoomMode {
+    /// A pyramid level of its own: under `zoom_max_side` px (in the zoomed rows) every box
+    /// comes from the enlarged frame; the full-size level's boxes of that size are
+    /// dropped before NMS ([`replace_small`]). The network places a box to a quarter of a
+    /// cell, so twice the pixels halve its error in frame px.
+    Level,
+    /// The first version: a zoomed box is added only where it overlaps no box of the
+    /// other levels (after their NMS) by IoU > [`ZOOM_OVERLAP_IOU`] ([`add_zoomed`]); the
+    /// other levels' boxes are unchanged.
+    Add,
 }
 
 /// The model metadata key of the box gain ([`CenterNetConfig::box_gain`]): sixteen
@@ -166,6 +183,10 @@ impl Default for CenterNetConfig {
             // vehicles, seed 0); without a calibration it costs precision on the aerial
             // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
+            // Choice: a level. Replacing the full-size level's small boxes, not only adding
+            // where they are missing, gives them the zoomed level's placement: HOTA from
+            // video (docs/DETECTION.md "Zoom").
+            zoom_mode: ZoomMode::Level,
             nested: NestedConfig::default(),
             // Choice: on. The network's boxes scatter (centre sd 1.4–2.8 px, size sd
             // 18–31 % on aerial cars) more than they are biased, and the mean of two views
@@ -282,6 +303,9 @@ fn native_of(proto: &tract_onnx::pb::ModelProto, path: &Path) -> Option<NativeNe
     }
     NativeNet::new(&net)
 }
+
+/// The zoomed level's rows (frame px, `[top, bottom)`) and boxes (frame px, best first).
+type ZoomLevel = ((f64, f64), Vec<Candidate>);
 
 /// The learned centre-point detector (module docs of [`super`]).
 pub struct CenterNetDetector {
@@ -655,6 +679,16 @@ impl CenterNetDetector {
     pub fn detect_boxes(&self, image: &RgbImage) -> Result<Vec<(BBox, ObjectClass, f64)>> {
         let min_side = self.config.min_side;
         let mut cands = self.pyramid_candidates(image)?;
+        let zoom = self.config.zoom_max_side > 0.0;
+        let mut zoomed = None;
+        if zoom {
+            zoomed = self.zoom_level(image)?;
+        }
+        if self.config.zoom_mode == ZoomMode::Level
+            && let Some((rows, boxes)) = zoomed.take()
+        {
+            replace_small(&mut cands, boxes, rows, self.config.zoom_max_side);
+        }
         cands.retain(|c| c.w.max(c.h) >= min_side);
         let kept = nms(cands, self.config.iou_threshold, usize::MAX);
         // Cross-class suppression: `kept` is sorted by score.
@@ -670,16 +704,16 @@ impl CenterNetDetector {
                 out.push(c);
             }
         }
-        if self.config.zoom_max_side > 0.0 && out.len() < self.config.max_detections {
-            let zoomed = self.zoom_candidates(image)?;
-            add_zoomed(&mut out, zoomed, &self.config);
+        if let Some((_, boxes)) = zoomed {
+            add_zoomed(&mut out, boxes, &self.config);
         }
         let out = drop_nested(out, &self.config);
         let (w, h) = (f64::from(image.width()), f64::from(image.height()));
         Ok(out
             .into_iter()
             .filter_map(|mut c| {
-                let (gw, gh) = box_factor(&self.gain[c.class], c.w, c.h);
+                let (gw, gh) =
+                    box_factor(&self.gain[c.class], c.w * c.gain_scale, c.h * c.gain_scale);
                 c.w *= gw;
                 c.h *= gh;
                 let x0 = (c.cx - c.w / 2.0).clamp(0.0, w);
@@ -724,18 +758,19 @@ impl CenterNetDetector {
         self
     }
 
-    /// Heat-map peaks of the frame (or, with a calibration, of its [`zoom_rows`] with a
-    /// margin of `zoom_max_side` rows) enlarged [`ZOOM`] times (bilinear), in frame px, from
+    /// The zoomed level: the rows it covers (frame px, `[top, bottom)`) and the heat-map
+    /// peaks of the frame (or, with a calibration, of its [`zoom_rows`] with a margin of
+    /// `zoom_max_side` rows) enlarged [`ZOOM`] times (bilinear), in frame px, from
     /// [`CenterNetConfig::min_side`] up to below [`CenterNetConfig::zoom_max_side`],
     /// centres inside the rows, class-wise NMS at [`CenterNetConfig::iou_threshold`]; best
-    /// first.
-    fn zoom_candidates(&self, image: &RgbImage) -> Result<Vec<Candidate>> {
+    /// first. `None` where no row is enlarged.
+    fn zoom_level(&self, image: &RgbImage) -> Result<Option<ZoomLevel>> {
         let cfg = &self.config;
         let (w, h) = image.dimensions();
         let rows = match &self.zoom_calibration {
             Some(cal) => match zoom_rows(cal, w, h, cfg.zoom_max_side) {
                 Some(r) => r,
-                None => return Ok(Vec::new()),
+                None => return Ok(None),
             },
             None => (0, h),
         };
@@ -743,7 +778,7 @@ impl CenterNetDetector {
         let top = rows.0.saturating_sub(margin);
         let bottom = (rows.1 + margin).min(h);
         if bottom <= top || w == 0 {
-            return Ok(Vec::new());
+            return Ok(None);
         }
         let band = image::imageops::crop_imm(image, 0, top, w, bottom - top).to_image();
         let big = image::imageops::resize(
@@ -761,6 +796,7 @@ impl CenterNetDetector {
                 cy: c.cy / z + f64::from(top),
                 w: c.w / z,
                 h: c.h / z,
+                gain_scale: z,
                 ..c
             })
             .filter(|c| {
@@ -768,7 +804,7 @@ impl CenterNetDetector {
                 side >= cfg.min_side && side < cfg.zoom_max_side && c.cy >= y0 && c.cy < y1
             })
             .collect();
-        Ok(nms(cands, cfg.iou_threshold, usize::MAX))
+        Ok(Some(((y0, y1), nms(cands, cfg.iou_threshold, usize::MAX))))
     }
 
     /// The heat map of `channels` (their maximum per cell) as a score map: cell `(r, c)`

@@ -24,11 +24,11 @@ mod views;
 
 pub use detector::{
     BOX_GAIN_KEY, BOX_GAIN_REF_PX, BOX_GAIN_SIZE_RANGE_PX, CenterNetConfig, CenterNetDense,
-    CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, box_factor, default_model_path,
+    CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, ZoomMode, box_factor, default_model_path,
 };
 pub use views::{
     ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, flip_input,
-    merge_levels, score_map_of, shrink, zoom_rows,
+    merge_levels, replace_small, score_map_of, shrink, zoom_rows,
 };
 
 use std::path::Path;

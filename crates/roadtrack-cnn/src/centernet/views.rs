@@ -226,6 +226,24 @@ pub fn zoom_rows(
     Some((first, last + 1))
 }
 
+/// The zoomed level as a pyramid level ([`super::ZoomMode::Level`]): the boxes of the
+/// other levels (`levels`, before NMS) whose longer side is under `max_side` px and whose
+/// centre lies in `rows` (frame px, `[top, bottom)`) are dropped, and `zoomed` (already
+/// limited to those sizes and rows) joins them, so NMS sees one level per size.
+// Choice: the size alone picks the level, as SNIP's ranges do (Singh & Davis 2018); no
+// overlap band, so an object near the limit takes its box from one level or the other per
+// frame. Overlapping the ranges (zoomed up to 48 px, full size from 24) gave 0.01 less
+// HOTA on the oblique intersection and 0.03 less on the crossing in the Python prototype.
+pub fn replace_small(
+    levels: &mut Vec<Candidate>,
+    zoomed: Vec<Candidate>,
+    rows: (f64, f64),
+    max_side: f64,
+) {
+    levels.retain(|c| !(c.w.max(c.h) < max_side && c.cy >= rows.0 && c.cy < rows.1));
+    levels.extend(zoomed);
+}
+
 /// Adds `zoomed` (best first) to `kept` (the other levels' boxes after NMS), each unless
 /// it overlaps a box already there by IoU > [`ZOOM_OVERLAP_IOU`], whatever the class, up
 /// to [`CenterNetConfig::max_detections`].
@@ -310,6 +328,7 @@ pub fn decode_peaks(maps: &HeatMaps, min_score: f64) -> Vec<Candidate> {
                     h: s * lh.exp(),
                     class: k,
                     score: f64::from(v),
+                    gain_scale: 1.0,
                 });
             }
         }

@@ -78,6 +78,11 @@ pub struct Candidate {
     pub class: usize,
     /// Confidence in `[0, 1]`.
     pub score: f64,
+    /// The learned detector's box gain reads this box at its size times this: 2 on the
+    /// zoomed level, whose boxes the network saw twice as large; 1 elsewhere, the shrunk
+    /// pyramid level included, whose boxes the gain's fit saw at frame size (docs/
+    /// DETECTION.md "Box gain", "Zoom").
+    pub gain_scale: f64,
 }
 
 impl Candidate {
@@ -244,6 +249,7 @@ pub fn decode(
             h: b[3],
             class,
             score: score.clamp(0.0, 1.0),
+            gain_scale: 1.0,
         };
         if score >= min_score && b.iter().all(|v| v.is_finite()) && c.w > 0.0 && c.h > 0.0 {
             out.push(c);
@@ -524,6 +530,7 @@ mod tests {
             h: 10.0,
             class,
             score,
+            gain_scale: 1.0,
         }
     }
 
@@ -564,6 +571,7 @@ mod tests {
                     h: 8.0,
                     class: 0,
                     score: 1.0,
+                    gain_scale: 1.0,
                 },
                 (128, 64),
             )
@@ -577,6 +585,7 @@ mod tests {
             h: 16.0,
             class: 0,
             score: 1.0,
+            gain_scale: 1.0,
         };
         let b = p.to_image(&edge, (128, 64)).expect("partly inside");
         assert_eq!((b.left, b.top, b.width, b.height), (0.0, 0.0, 24.0, 16.0));
