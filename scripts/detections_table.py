@@ -22,7 +22,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from video_tracking_table import add_common_arguments, evaluate, run  # noqa: E402
+from video_tracking_table import add_common_arguments, evaluate, run, sequence  # noqa: E402
 
 # Each method's shipped settings for video (docs/EXPERIMENTS.md "Box gain", "Dots").
 METHODS = [
@@ -50,10 +50,7 @@ def main():
         for view in a.views.split(","):
             rows = {}  # tracker -> [metrics per seed]
             for seed in seeds:
-                seq = f"{a.work}/{scene}-{view}-{seed}"
-                if not os.path.exists(f"{seq}/seqinfo.ini"):
-                    run([rt, "-q", "simulate", "--scene", scene, "--view", view,
-                         "--frames", str(a.frames), "--seed", str(seed), "-o", seq])
+                seq = sequence(rt, a.work, scene, view, seed, a.frames)
                 peer = f"{seq}/peer.txt"
                 if not os.path.exists(peer):
                     import mog2_norfair

@@ -50,6 +50,15 @@ def evaluate(rt, seq, tracks):
     return {k: float(m[k]) for k in KEYS}
 
 
+def sequence(rt, work, scene, view, seed, frames):
+    """The simulated sequence folder `work/scene-view-seed`, simulated first if missing."""
+    seq = f"{work}/{scene}-{view}-{seed}"
+    if not os.path.exists(f"{seq}/seqinfo.ini"):
+        run([rt, "-q", "simulate", "--scene", scene, "--view", view,
+             "--frames", str(frames), "--seed", str(seed), "-o", seq])
+    return seq
+
+
 def add_common_arguments(ap):
     """The binary, the sequences and the methods: what scripts/smooth_table.py takes too."""
     ap.add_argument("--roadtrack", default="roadtrack")
@@ -85,10 +94,7 @@ def main():
         for view in a.views.split(","):
             sv = f"{scene}/{view}"
             for seed in seeds:
-                seq = f"{a.work}/{scene}-{view}-{seed}"
-                if not os.path.exists(f"{seq}/seqinfo.ini"):
-                    run([rt, "-q", "simulate", "--scene", scene, "--view", view,
-                         "--frames", str(a.frames), "--seed", str(seed), "-o", seq])
+                seq = sequence(rt, a.work, scene, view, seed, a.frames)
                 t = f"{a.work}/t.txt"
                 rows = []
                 mog2_norfair.main(seq, t)

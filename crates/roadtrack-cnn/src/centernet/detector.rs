@@ -184,8 +184,9 @@ impl Default for CenterNetConfig {
             // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
             // Choice: a level. Replacing the full-size level's small boxes, not only adding
-            // where they are missing, gives them the zoomed level's placement: HOTA from
-            // video (docs/DETECTION.md "Zoom").
+            // where they are missing, gives them the zoomed level's placement: best HOTA
+            // from video at PX 16, seeds 1–3, add → level: oblique road 0.381 → 0.406,
+            // oblique intersection 0.539 → 0.562 (docs/EXPERIMENTS.md "Zoom as a level").
             zoom_mode: ZoomMode::Level,
             nested: NestedConfig::default(),
             // Choice: on. The network's boxes scatter (centre sd 1.4–2.8 px, size sd
