@@ -98,8 +98,8 @@ pub struct CenterNetConfig {
 pub enum ZoomMode {
     /// A pyramid level of its own: under `zoom_max_side` px (in the zoomed rows) every box
     /// comes from the enlarged frame; the full-size level's boxes of that size are
-    /// dropped before NMS ([`replace_small`]). The network places a box to a quarter of a
-    /// cell, so twice the pixels halve its error in frame px.
+    /// dropped before NMS ([`replace_small`]). The network's box error is a fraction of
+    /// its 4 px cell, so at twice the pixels it is half as large in frame px.
     Level,
     /// The first version: a zoomed box is added only where it overlaps no box of the
     /// other levels (after their NMS) by IoU > [`ZOOM_OVERLAP_IOU`] ([`add_zoomed`]); the
@@ -680,11 +680,11 @@ impl CenterNetDetector {
     pub fn detect_boxes(&self, image: &RgbImage) -> Result<Vec<(BBox, ObjectClass, f64)>> {
         let min_side = self.config.min_side;
         let mut cands = self.pyramid_candidates(image)?;
-        let zoom = self.config.zoom_max_side > 0.0;
-        let mut zoomed = None;
-        if zoom {
-            zoomed = self.zoom_level(image)?;
-        }
+        let mut zoomed = if self.config.zoom_max_side > 0.0 {
+            self.zoom_level(image)?
+        } else {
+            None
+        };
         if self.config.zoom_mode == ZoomMode::Level
             && let Some((rows, boxes)) = zoomed.take()
         {

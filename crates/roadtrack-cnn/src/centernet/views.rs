@@ -230,10 +230,11 @@ pub fn zoom_rows(
 /// other levels (`levels`, before NMS) whose longer side is under `max_side` px and whose
 /// centre lies in `rows` (frame px, `[top, bottom)`) are dropped, and `zoomed` (already
 /// limited to those sizes and rows) joins them, so NMS sees one level per size.
-// Choice: the size alone picks the level, as SNIP's ranges do (Singh & Davis 2018); no
-// overlap band, so an object near the limit takes its box from one level or the other per
-// frame. Overlapping the ranges (zoomed up to 48 px, full size from 24) gave 0.01 less
-// HOTA on the oblique intersection and 0.03 less on the crossing in the Python prototype.
+// Choice: the size alone picks the level, as SNIP's ranges do (Singh & Davis 2018), so an
+// object near the limit takes its box from one level or the other per frame. Averaging the
+// two levels' boxes where both find an object scored less in the Python prototype
+// (relaxation on the oblique intersection at PX 32: 0.560 against 0.582; docs/
+// EXPERIMENTS.md "Zoom as a level").
 pub fn replace_small(
     levels: &mut Vec<Candidate>,
     zoomed: Vec<Candidate>,
