@@ -243,7 +243,8 @@ impl OnnxArgs {
             config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
         let mut detector = CenterNetDetector::load(&path, &config)?;
-        if let (Some(_), Some(c)) = (self.zoom_small, calibration) {
+        if let (Some(px), Some(c)) = (self.zoom_small, calibration) {
+            warn_if_zoom_top_down(px, c);
             detector = detector.with_zoom_calibration(c.clone());
         }
         Ok(roadtrack::detect::DetectorSpec::Given(Box::new(detector)))
@@ -366,5 +367,25 @@ impl OnnxArgs {
             "--detector onnx needs roadtrack built with the `cnn` feature \
              (cargo build -p roadtrack-cli --features cnn)"
         )
+    }
+}
+
+/// The zoom is for oblique views: on a top-down (nadir) calibration in which a car is
+/// under the zoom's limit the whole frame is enlarged, and the network boxes enlarged
+/// top-down vehicles badly (docs/DETECTION.md "Zoom"). Say so on stderr, even with `-q`:
+/// the output would be worse than without the flag.
+#[cfg(feature = "cnn")]
+fn warn_if_zoom_top_down(px: f64, calibration: &roadtrack::calibration::Calibration) {
+    let Some(mpp) = calibration.metres_per_pixel() else {
+        return;
+    };
+    let car_px = roadtrack_cnn::centernet::ZOOM_CAR_LENGTH_M / mpp;
+    if car_px < px {
+        eprintln!(
+            "warning: --zoom-small {px} on a top-down view: at {mpp} m/px a car is {car_px:.1} \
+             px, so the whole frame is enlarged; the zoom is for oblique views (on the \
+             simulator's aerial road it lowers HOTA from 0.60 to 0.32, docs/DETECTION.md \
+             \"Zoom\"); give a smaller --zoom-small or leave it out"
+        );
     }
 }

@@ -183,6 +183,36 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     let cal = cal.to_str().expect("a UTF-8 temporary path");
     let banded = run(&["--zoom-small", "12", "--calibration", cal], "banded.csv");
     assert_eq!(banded, plain);
+    // At --zoom-small 16 the nadir view's 13.6 px cars are under the limit: the whole
+    // frame is enlarged, and a warning says the zoom is for oblique views; at 12, none.
+    let warned = |px: &str| {
+        let model = shipped_model();
+        let o = bin()
+            .arg("detect")
+            .arg(fixture("tiny_sequence"))
+            .args([
+                "--detector",
+                "cnn",
+                "--model",
+                model.to_str().expect("UTF-8"),
+            ])
+            .args([
+                "-q",
+                "--no-flip",
+                "--zoom-small",
+                px,
+                "--calibration",
+                cal,
+                "-o",
+            ])
+            .arg(dir.path().join("w.csv"))
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o).contains("warning: --zoom-small")
+    };
+    assert!(warned("16"));
+    assert!(!warned("12"));
     // Nested boxes kept: an added small box may hold a default one.
     let plain = run(&["--keep-nested"], "plain_all.csv");
     let zoomed = run(
