@@ -15,6 +15,8 @@
 //! ([`onnx_model`]) and the detector ([`CenterNetDetector`], in `detector.rs`).
 
 mod detector;
+#[cfg(test)]
+mod level_tests;
 pub mod native;
 #[cfg(test)]
 mod native_tests;
