@@ -53,6 +53,20 @@ impl ObjectClass {
         )
     }
 
+    /// Whether a box of this class and one of `other` may be the same object: false only
+    /// between a person on foot and a car, lorry or bus. Two-wheelers, unknown and other
+    /// classes go with anything.
+    // Choice: a motorcycle or bicycle carries a rider that a detector may box as a
+    // pedestrian; a car is never a pedestrian. On the demo's frames (seed 0) the learned
+    // detector called 2 of 5 123 matched vehicle boxes and none of 10 029 pedestrian boxes
+    // by the other group.
+    pub fn may_be_same_object(&self, other: &ObjectClass) -> bool {
+        let car_like =
+            |c: &ObjectClass| matches!(c, ObjectClass::Car | ObjectClass::Truck | ObjectClass::Bus);
+        let on_foot = |c: &ObjectClass| matches!(c, ObjectClass::Pedestrian);
+        !(car_like(self) && on_foot(other) || on_foot(self) && car_like(other))
+    }
+
     /// The MOT17 class number written in ground-truth files.
     ///
     /// MOT17 numbers: 1 pedestrian, 3 car, 4 bicycle, 5 motorbike, 6 non-MOT vehicle.
@@ -131,6 +145,31 @@ impl From<ObjectClass> for String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_people_on_foot_and_cars_lorries_buses_are_kept_apart() {
+        use ObjectClass::*;
+        let all = [
+            Car,
+            Truck,
+            Bus,
+            Motorcycle,
+            Bicycle,
+            Pedestrian,
+            Unknown,
+            Other("x".into()),
+        ];
+        for a in &all {
+            for b in &all {
+                let apart = matches!(
+                    (a, b),
+                    (Car | Truck | Bus, Pedestrian) | (Pedestrian, Car | Truck | Bus)
+                );
+                assert_eq!(a.may_be_same_object(b), !apart, "{a:?} {b:?}");
+                assert_eq!(a.may_be_same_object(b), b.may_be_same_object(a));
+            }
+        }
+    }
 
     #[test]
     fn names_round_trip() {

@@ -208,6 +208,11 @@ fn join_cost(cfg: &LinkConfig, colours: &Colours, a: &Track, b: &Track) -> Optio
     if g - 1 > cfg.max_gap_frames {
         return None;
     }
+    // Choice: a walker's fragment never joins a car's, lorry's or bus's
+    // (`ObjectClass::may_be_same_object`), as the trackers' own class gates decide.
+    if !pa.class.may_be_same_object(&b0.class) {
+        return None;
+    }
     let ratio = |x: f64, y: f64| (x / y).max(y / x);
     if ratio(pa.bbox.width, b0.bbox.width) > cfg.max_size_ratio
         || ratio(pa.bbox.height, b0.bbox.height) > cfg.max_size_ratio
@@ -563,6 +568,16 @@ mod tests {
         pts.extend((13..=25).map(|f| point(f, 2, 3.0 * f64::from(f), 100.0, 30.0)));
         let mut out = frames(&pts, 25);
         assert_eq!(link(&cfg, &Colours::new(), &mut out)?, 0);
+        // On the path and the same size, but a car after a walker; a motorcycle may join.
+        for (class, joins) in [(ObjectClass::Car, 0), (ObjectClass::Motorcycle, 1)] {
+            let mut pts = walk(1, 1..=10, 0.0, 3.0);
+            pts.extend(walk(2, 13..=25, 0.0, 3.0).into_iter().map(|p| TrackPoint {
+                class: class.clone(),
+                ..p
+            }));
+            let mut out = frames(&pts, 25);
+            assert_eq!(link(&cfg, &Colours::new(), &mut out)?, joins, "{class:?}");
+        }
         Ok(())
     }
 

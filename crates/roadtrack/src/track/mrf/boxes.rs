@@ -123,8 +123,9 @@ impl BoxOutcome {
 /// are scored by `weights.block_iou` × the block IoU of the box's blocks and the object's,
 /// plus the IoU of the box and the object's expected box; an object whose blocks the box
 /// does not cover at all is a candidate only when that box IoU reaches
-/// `weights.revive_iou` or the box lies within its distance gate. `appearance(box, id)` is
-/// added to every candidate's score. New objects take `*next_id` onwards.
+/// `weights.revive_iou` or the box lies within its distance gate. `extra(box, id)` is added
+/// to every candidate's score (the appearance term); where it is `None` the box may not
+/// continue that object (the class gate). New objects take `*next_id` onwards.
 ///
 /// Returns one outcome per box, in the boxes' order.
 // Choice: one-to-one matching, by default of maximum total score (Hungarian; greedy by
@@ -148,7 +149,7 @@ pub fn apply_boxes(
     boxes: &[BBox],
     revivable: &[(ObjectId, BBox)],
     weights: Weights,
-    appearance: &dyn Fn(usize, ObjectId) -> f64,
+    extra: &dyn Fn(usize, ObjectId) -> Option<f64>,
     next_id: &mut ObjectId,
 ) -> Vec<BoxOutcome> {
     let covers: Vec<Vec<usize>> = boxes.iter().map(|b| box_cover(grid, b)).collect();
@@ -181,24 +182,25 @@ pub fn apply_boxes(
             })
         };
         for (&id, &inter) in &hist {
+            let Some(extra) = extra(j, id) else {
+                continue;
+            };
             let union = cover.len() as u32 + area[&id] - inter;
             let block_iou = f64::from(inter) / f64::from(union.max(1));
             let s = weights.block_iou * block_iou
                 + box_iou(id)
                 + weights.distance * closeness(id)
-                + appearance(j, id);
+                + extra;
             pairs.push((s, j, id, true));
         }
         for &id in expected.keys() {
             let iou = box_iou(id);
             let near = closeness(id);
-            if !hist.contains_key(&id) && (iou >= weights.revive_iou || near > 0.0) {
-                pairs.push((
-                    iou + weights.distance * near + appearance(j, id),
-                    j,
-                    id,
-                    false,
-                ));
+            if !hist.contains_key(&id)
+                && (iou >= weights.revive_iou || near > 0.0)
+                && let Some(extra) = extra(j, id)
+            {
+                pairs.push((iou + weights.distance * near + extra, j, id, false));
             }
         }
     }
@@ -368,7 +370,7 @@ mod tests {
             ],
             &[],
             W,
-            &|_, _| 0.0,
+            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(7), BoxOutcome::Started(10)]);
@@ -386,7 +388,15 @@ mod tests {
         let mut next = 4;
         let left = BBox::new(32.0, 32.0, 16.0, 24.0); // 2 × 3 blocks
         let right = BBox::new(48.0, 32.0, 32.0, 24.0); // 4 × 3 blocks
-        let out = apply_boxes(&mut ids, &g, &[left, right], &[], W, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[left, right],
+            &[],
+            W,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Started(4), BoxOutcome::Matched(3)]);
         assert_eq!(ids.iter().filter(|&&i| i == 4).count(), 6);
         assert_eq!(ids.iter().filter(|&&i| i == 3).count(), 12);
@@ -406,7 +416,7 @@ mod tests {
             &[BBox::new(16.0, 16.0, 16.0, 16.0)],
             &[],
             W,
-            &|_, _| 0.0,
+            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(1)]);
@@ -427,7 +437,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(82.0, 80.0, 24.0, 16.0))],
             W,
-            &|_, _| 0.0,
+            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
@@ -441,7 +451,7 @@ mod tests {
             &[b],
             &[(5, BBox::new(120.0, 80.0, 24.0, 16.0))],
             W,
-            &|_, _| 0.0,
+            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
@@ -457,14 +467,30 @@ mod tests {
         let b1 = BBox::new(16.0, 16.0, 32.0, 16.0);
         let b2 = BBox::new(40.0, 16.0, 24.0, 16.0);
         let mut next = 3;
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[b1, b2],
+            &[],
+            W,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(5, 2)], 2, "the shared column stays with 2");
         // Unlabelled shared blocks go to the nearer box centre.
         let mut ids = vec![NO_OBJECT; g.len()];
         fill(&mut ids, &g, 2..4, 2..4, 1);
         fill(&mut ids, &g, 6..8, 2..4, 2);
-        let out = apply_boxes(&mut ids, &g, &[b1, b2], &[], W, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[b1, b2],
+            &[],
+            W,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(4, 2)], 1);
         assert_eq!(ids[g.index(5, 2)], 2);
@@ -487,16 +513,40 @@ mod tests {
         let expected = [(5, BBox::new(80.0, 80.0, 5.0, 7.0))];
         let mut next = 9;
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[b],
+            &expected,
+            NEW,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
         // Without the distance term (the matching before issue 14): a new object.
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(&mut ids, &g, &[b], &expected, W, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[b],
+            &expected,
+            W,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
         // Beyond the gate (max(8 px, 5 px)): a new object either way.
         let far = BBox::new(89.0, 80.0, 5.0, 7.0);
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(&mut ids, &g, &[far], &expected, NEW, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[far],
+            &expected,
+            NEW,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert_eq!(out, vec![BoxOutcome::Started(10)]);
     }
 
@@ -522,12 +572,20 @@ mod tests {
             (2, BBox::new(82.0, 80.0, 5.0, 7.0)),
         ];
         let mut next = 3;
-        let looks = |_: usize, id: ObjectId| if id == 2 { 1.0 } else { 0.0 };
+        let looks = |_: usize, id: ObjectId| Some(if id == 2 { 1.0 } else { 0.0 });
         let mut ids = vec![NO_OBJECT; g.len()];
         let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &looks, &mut next);
         assert_eq!(out, vec![BoxOutcome::Revived(2)]);
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &|_, _| 0.0, &mut next);
+        let out = apply_boxes(
+            &mut ids,
+            &g,
+            &[b],
+            &expected,
+            NEW,
+            &|_, _| Some(0.0),
+            &mut next,
+        );
         assert!(matches!(out[..], [BoxOutcome::Revived(1 | 2)]), "{out:?}");
     }
 }

@@ -166,6 +166,12 @@ pub struct MrfConfig {
     pub gate_px: f64,
     /// With detections: see `gate_px`. Default 1.
     pub gate_width_factor: f64,
+    /// With detections: a box never continues an object whose last box was of a class it
+    /// cannot be ([`ObjectClass::may_be_same_object`]: a pedestrian and a car, lorry or
+    /// bus); it starts an object of its own. Default true.
+    ///
+    /// [`ObjectClass::may_be_same_object`]: crate::class::ObjectClass::may_be_same_object
+    pub keep_classes_apart: bool,
 }
 
 /// How the boxes of a frame are matched to objects ([`MrfConfig::association`]).
@@ -241,6 +247,7 @@ impl Default for MrfConfig {
             distance_weight: 2.0,
             gate_px: 8.0,
             gate_width_factor: 1.0,
+            keep_classes_apart: true,
         }
     }
 }

@@ -167,7 +167,7 @@ fn run_with_boxes_at(
 /// For each truth id, the ids of the output boxes that overlap its box by IoU ≥ 0.5, over
 /// the frames `from..`; and the number of frames it had none.
 fn ids_per_truth(
-    scene: &Scene,
+    scene: &[(Frame, BTreeMap<u64, BBox>, Vec<Detection>)],
     points: &[Vec<TrackPoint>],
     from: usize,
 ) -> BTreeMap<u64, (std::collections::BTreeSet<u64>, usize)> {
@@ -226,6 +226,55 @@ fn detector_boxes_split_two_cars_that_enter_side_by_side() -> Result<()> {
     );
     let missed: usize = pixels.values().map(|v| v.1).sum();
     assert!(missed >= 10, "pixels alone separated the cars: {pixels:?}");
+    Ok(())
+}
+
+#[test]
+fn a_pedestrian_box_never_continues_a_car() -> Result<()> {
+    // One car crossing the view. From frame 20 on its boxes are called pedestrians (a
+    // person where the car's blocks still are, as when a car leaves and a walker steps in):
+    // with the class gate the MRF starts a new object there; without it the car's id goes on.
+    let cars = [Car {
+        id: 1,
+        y_m: -1.75,
+        knots: vec![(0.0, -14.0), (4.0, 14.0)],
+        rgb: [200, 40, 30],
+    }];
+    let mut scene = scripted(&cars, 40)?;
+    let switch = 20;
+    for (k, (_, _, dets)) in scene.iter_mut().enumerate() {
+        for d in dets.iter_mut() {
+            d.class = Some(if k < switch {
+                ObjectClass::Car
+            } else {
+                ObjectClass::Pedestrian
+            });
+        }
+    }
+    let ids = |cfg: &MrfConfig| -> Result<(
+        std::collections::BTreeSet<u64>,
+        std::collections::BTreeSet<u64>,
+    )> {
+        let points = run_with_boxes(cfg, &scene)?;
+        let before = ids_per_truth(&scene[..switch], &points[..switch], 8);
+        // The car's object coasts on its predicted box until it ends.
+        let coast = cfg.max_missed_frames as usize + 1;
+        let after = ids_per_truth(&scene[switch..], &points[switch..], coast);
+        Ok((before[&1].0.clone(), after[&1].0.clone()))
+    };
+    let (before, after) = ids(&MrfConfig::default())?;
+    assert_eq!(before.len(), 1, "the car: ids {before:?}");
+    assert_eq!(after.len(), 1, "the walker: ids {after:?}");
+    assert!(
+        before.is_disjoint(&after),
+        "the car's id went on: {before:?} then {after:?}"
+    );
+    let ungated = MrfConfig {
+        keep_classes_apart: false,
+        ..MrfConfig::default()
+    };
+    let (before, after) = ids(&ungated)?;
+    assert_eq!(before, after, "without the gate one object throughout");
     Ok(())
 }
 

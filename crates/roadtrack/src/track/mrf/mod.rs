@@ -438,13 +438,26 @@ impl MrfTracker {
                 let scale = self.config.appearance_scale;
                 let objects = &self.objects;
                 let descs = &descriptors;
-                let similar = |j: usize, id: ObjectId| -> f64 {
-                    match (descs.get(j).copied().flatten(), objects.get(&id)) {
+                let gate = self.config.keep_classes_apart;
+                let dets = detections.unwrap_or_default();
+                // The appearance term, or `None` where the class gate forbids the pair.
+                let extra = |j: usize, id: ObjectId| -> Option<f64> {
+                    let object = objects.get(&id);
+                    if gate
+                        && let (Some(c), Some((_, last, _))) = (
+                            dets.get(j).and_then(|d| d.class.as_ref()),
+                            object.and_then(|o| o.last.as_ref()),
+                        )
+                        && !c.may_be_same_object(last)
+                    {
+                        return None;
+                    }
+                    Some(match (descs.get(j).copied().flatten(), object) {
                         (Some(d), Some(o)) => o
                             .appearance
                             .map_or(0.0, |a| weight * appearance::similarity(&a, &d, scale)),
                         _ => 0.0,
-                    }
+                    })
                 };
                 let out = boxes::apply_boxes(
                     &mut ids,
@@ -459,7 +472,7 @@ impl MrfTracker {
                         gate_width_factor: self.config.gate_width_factor,
                         optimal: self.config.association == Association::Optimal,
                     },
-                    &similar,
+                    &extra,
                     &mut self.next_id,
                 );
                 stats.births = out

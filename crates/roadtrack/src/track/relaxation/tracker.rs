@@ -101,6 +101,11 @@ pub struct RelaxationTrackerConfig {
     /// See `upright_colour_fraction`: height / width from which a box counts as upright.
     /// Default 1.5.
     pub upright_aspect: f64,
+    /// Class gate (ours): a track whose last detection was a pedestrian never takes a car,
+    /// lorry or bus detection, nor the other way round ([`ObjectClass::may_be_same_object`];
+    /// by the relaxation or the second assignment). Detections without a class pass.
+    /// Default true.
+    pub keep_classes_apart: bool,
 }
 
 impl Default for RelaxationTrackerConfig {
@@ -118,6 +123,7 @@ impl Default for RelaxationTrackerConfig {
             size_ratio_gate: 0.0,
             upright_colour_fraction: 1.0,
             upright_aspect: 1.5,
+            keep_classes_apart: true,
         }
     }
 }
@@ -199,6 +205,8 @@ struct Track {
     colour: Option<[f64; 3]>,
     /// The last detection's box size, px, unless that box touched the image's edge.
     size: Option<(f64, f64)>,
+    /// The last detection's class, where it had one.
+    class: Option<ObjectClass>,
     last_frame: u32,
 }
 
@@ -277,7 +285,7 @@ impl RelaxationTracker {
         let mut owner: Vec<Option<usize>> = vec![None; detections.len()];
         for (n, k) in matching.partner.iter().enumerate() {
             if let Some(k) = *k
-                && self.sizes_match(&self.tracks[n], &detections[k])
+                && self.may_continue(&self.tracks[n], &detections[k])
             {
                 let better = match owner[k] {
                     None => true,
@@ -317,6 +325,7 @@ impl RelaxationTracker {
                     }
                     t.colour = d.colour_rgb.or(t.colour);
                     t.size = size;
+                    t.class = d.class.clone().or(t.class.take());
                     t.last_frame = frame;
                     t.id
                 }
@@ -329,6 +338,7 @@ impl RelaxationTracker {
                         velocity: [0.0, 0.0],
                         colour: d.colour_rgb,
                         size,
+                        class: d.class.clone(),
                         last_frame: frame,
                     });
                     id
@@ -360,6 +370,18 @@ impl RelaxationTracker {
 }
 
 impl RelaxationTracker {
+    /// Whether `d` may continue `track`: the size gate
+    /// ([`RelaxationTrackerConfig::size_ratio_gate`]) and the class gate
+    /// ([`RelaxationTrackerConfig::keep_classes_apart`]).
+    fn may_continue(&self, track: &Track, d: &Detection) -> bool {
+        let classes = !self.config.keep_classes_apart
+            || match (&track.class, &d.class) {
+                (Some(a), Some(b)) => a.may_be_same_object(b),
+                _ => true,
+            };
+        classes && self.sizes_match(track, d)
+    }
+
     /// Whether `track` and `d` pass the size gate ([`RelaxationTrackerConfig::size_ratio_gate`]).
     fn sizes_match(&self, track: &Track, d: &Detection) -> bool {
         let r = self.config.size_ratio_gate;
@@ -440,7 +462,7 @@ impl RelaxationTracker {
             for &k in &cols {
                 let d = p.distance(detections[k].pos_px);
                 cost.push(
-                    if d <= gate(&detections[k]) && self.sizes_match(t, &detections[k]) {
+                    if d <= gate(&detections[k]) && self.may_continue(t, &detections[k]) {
                         d
                     } else {
                         forbidden
@@ -762,6 +784,43 @@ mod tests {
             let m = RelaxationTracker::new(cfg).expect_err("gate").to_string();
             assert!(m.contains("size_ratio_gate"), "{m}");
         }
+        Ok(())
+    }
+
+    #[test]
+    fn the_class_gate_keeps_a_pedestrian_track_off_a_car() -> Result<()> {
+        // A pedestrian's track; in frame 2 only a car is detected 3 px away (the walker
+        // hidden), in frame 3 both. Sizes equal, so only the classes tell them apart.
+        let with = |d: Detection, c: ObjectClass| Detection {
+            class: Some(c),
+            ..d
+        };
+        let frames = [
+            vec![with(
+                boxed(1, 1, 100.0, (12.0, 30.0)),
+                ObjectClass::Pedestrian,
+            )],
+            vec![with(boxed(2, 1, 103.0, (12.0, 30.0)), ObjectClass::Car)],
+            vec![
+                with(boxed(3, 1, 100.0, (12.0, 30.0)), ObjectClass::Pedestrian),
+                with(boxed(3, 2, 106.0, (12.0, 30.0)), ObjectClass::Car),
+            ],
+        ];
+        let ids = |gate: bool| -> Result<Vec<Vec<u64>>> {
+            let mut t = RelaxationTracker::new(RelaxationTrackerConfig {
+                keep_classes_apart: gate,
+                ..Default::default()
+            })?;
+            frames
+                .iter()
+                .zip(1..)
+                .map(|(d, f)| Ok(ids_by_detection(&t.step(f, 0.0, d)?)))
+                .collect()
+        };
+        // Without the gate the pedestrian's track takes the car.
+        assert_eq!(ids(false)?[1], vec![1]);
+        // With it the car starts its own track and the pedestrian keeps hers.
+        assert_eq!(ids(true)?, vec![vec![1], vec![2], vec![1, 2]]);
         Ok(())
     }
 
