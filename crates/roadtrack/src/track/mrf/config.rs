@@ -172,6 +172,10 @@ pub struct MrfConfig {
     ///
     /// [`ObjectClass::may_be_same_object`]: crate::class::ObjectClass::may_be_same_object
     pub keep_classes_apart: bool,
+    /// With detections: an object no box matched whose expected box lies less than this
+    /// fraction inside the frame has left the view and ends at once, before
+    /// `max_missed_frames`. Default 0.5; 0 = off.
+    pub end_outside_fraction: f64,
 }
 
 /// How the boxes of a frame are matched to objects ([`MrfConfig::association`]).
@@ -248,6 +252,7 @@ impl Default for MrfConfig {
             gate_px: 8.0,
             gate_width_factor: 1.0,
             keep_classes_apart: true,
+            end_outside_fraction: 0.5,
         }
     }
 }
@@ -357,6 +362,12 @@ impl MrfConfig {
                 return err(field, format!("must be in (0, 1], found {v}"));
             }
         }
+        if !(0.0..=1.0).contains(&self.end_outside_fraction) {
+            return err(
+                "end_outside_fraction",
+                format!("must be in [0, 1], found {}", self.end_outside_fraction),
+            );
+        }
         if !(0.0..=1.0).contains(&self.revive_iou) {
             return err(
                 "revive_iou",
@@ -414,6 +425,14 @@ mod tests {
             ..MrfConfig::default()
         };
         assert!(bad.validate().is_err());
+        for v in [-0.1, 1.5, f64::NAN] {
+            let bad = MrfConfig {
+                end_outside_fraction: v,
+                ..MrfConfig::default()
+            };
+            let m = bad.validate().expect_err("out of range").to_string();
+            assert!(m.contains("end_outside_fraction"), "{m}");
+        }
         Ok(())
     }
 }

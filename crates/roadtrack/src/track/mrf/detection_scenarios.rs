@@ -278,6 +278,45 @@ fn a_pedestrian_box_never_continues_a_car() -> Result<()> {
     Ok(())
 }
 
+#[test]
+fn an_object_that_drove_out_of_view_does_not_take_the_next_one_in() -> Result<()> {
+    // Car 1 leaves the view on the left; car 2 enters there in the other lane 0.4 s
+    // later, through the blocks car 1 left at the edge.
+    let cars = [
+        Car {
+            id: 1,
+            y_m: -1.75,
+            knots: vec![(0.0, 0.0), (3.0, -36.0)],
+            rgb: [200, 40, 30],
+        },
+        Car {
+            id: 2,
+            y_m: 1.75,
+            knots: vec![(0.0, -30.0), (0.3, -30.0), (1.3, -12.0), (4.0, 10.0)],
+            rgb: [40, 70, 200],
+        },
+    ];
+    let scene = scripted(&cars, 48)?;
+    let ids = |cfg: &MrfConfig| -> Result<BTreeMap<u64, (std::collections::BTreeSet<u64>, usize)>> {
+        Ok(ids_per_truth(&scene, &run_with_boxes(cfg, &scene)?, 0))
+    };
+    // Car 1 is gone from frame 10; car 2's first box (frame 14) lies on its blocks.
+    let with = ids(&MrfConfig::default())?;
+    assert_eq!(with[&1].0.len(), 1, "{with:?}");
+    assert_eq!(with[&2].0.len(), 1, "{with:?}");
+    assert!(
+        with[&1].0.is_disjoint(&with[&2].0),
+        "one id for both cars: {with:?}"
+    );
+    // Held on for max_missed_frames, car 1's object takes car 2.
+    let without = ids(&MrfConfig {
+        end_outside_fraction: 0.0,
+        ..MrfConfig::default()
+    })?;
+    assert_eq!(without[&1].0, without[&2].0, "{without:?}");
+    Ok(())
+}
+
 /// Pedestrians `(id, y_m, x_m at 0 s, speed m/s, top colour)` walking along x on the
 /// `crossing` scene, oblique, 640 × 480 px (as `roadtrack simulate`), with the simulator's
 /// default detection noise (1 px position sd, 5 % size sd, 5 % misses) and no false boxes.

@@ -411,6 +411,24 @@ impl MrfTracker {
                 p.top += track.velocity[1];
             }
         }
+        // Choice: with boxes, an object expected mostly outside the frame has left it and
+        // ends before the boxes are matched; held on, its blocks at the edge would take the
+        // box of the next object there (a walker stepping in where a car drove out).
+        if boxes.is_some() && self.config.end_outside_fraction > 0.0 {
+            let (w, h, f) = (self.width, self.height, self.config.end_outside_fraction);
+            let gone: Vec<ObjectId> = self
+                .objects
+                .iter()
+                .filter(|(_, o)| o.predicted.is_some_and(|b| inside_fraction(&b, w, h) < f))
+                .map(|(&id, _)| id)
+                .collect();
+            for id in gone {
+                self.objects.remove(&id);
+                for v in ids.iter_mut().filter(|v| **v == id) {
+                    *v = NO_OBJECT;
+                }
+            }
+        }
         let mut descriptors: Vec<Option<appearance::Appearance>> = Vec::new();
         let outcomes = match &boxes {
             None => {
@@ -692,6 +710,16 @@ impl MrfTracker {
         out.sort_by_key(|p| p.id);
         out
     }
+}
+
+/// The fraction of `b`'s area inside a `width × height` px frame (1 for an empty box).
+fn inside_fraction(b: &BBox, width: u32, height: u32) -> f64 {
+    let area = b.area();
+    if area <= 0.0 {
+        return 1.0;
+    }
+    let frame = BBox::new(0.0, 0.0, f64::from(width), f64::from(height));
+    b.intersection_area(&frame) / area
 }
 
 /// `a · new + (1 − a) · old` for the centre and the size.
