@@ -5,6 +5,7 @@
 //! ([`BoxFromDetections`]). The *predictor* and *updater* are each method's own
 //! (relaxation labels, the MRF object map, one particle filter per object, PHD labels).
 
+use crate::class::ObjectClass;
 use crate::detection::Detection;
 use crate::geometry::{BBox, Point};
 use crate::track_point::TrackPoint;
@@ -126,7 +127,8 @@ pub fn one_to_one(tracked: &[(u64, Point)], detections: &[Detection], gate: f64)
 }
 
 /// Box sizes for trackers that estimate positions only: each point takes the size of the
-/// nearest detection within the gate, else its track's last size, else a default.
+/// nearest detection within the gate, else its track's last size, else a default; and
+/// likewise the detection's class, else its track's last detected class, else its own.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxFromDetections {
     /// Largest centre distance to a detection that lends its size, px.
@@ -135,6 +137,8 @@ pub struct BoxFromDetections {
     pub default_size_px: (f64, f64),
     /// Per live track id: its last size.
     sizes: BTreeMap<u64, (f64, f64)>,
+    /// Per live track id: the class of its last detection that had one.
+    classes: BTreeMap<u64, ObjectClass>,
 }
 
 impl BoxFromDetections {
@@ -144,6 +148,7 @@ impl BoxFromDetections {
             gate_px,
             default_size_px,
             sizes: BTreeMap::new(),
+            classes: BTreeMap::new(),
         }
     }
 
@@ -160,6 +165,15 @@ impl BoxFromDetections {
             if let Some(size) = near.and_then(|d| d.size_px) {
                 self.sizes.insert(p.id, size);
             }
+            // Choice: the PHD's labels carry no class and a PF object keeps its birth
+            // detection's; the class comes from the detection that lends the size, so the
+            // life cycle's majority vote sees the detector's classes.
+            if let Some(class) = near.and_then(|d| d.class.clone()) {
+                self.classes.insert(p.id, class);
+            }
+            if let Some(class) = self.classes.get(&p.id) {
+                p.class = class.clone();
+            }
             let (w, h) = self
                 .sizes
                 .get(&p.id)
@@ -168,13 +182,13 @@ impl BoxFromDetections {
             p.bbox = BBox::from_centre(c, w, h);
         }
         self.sizes.retain(|id, _| live.contains(id));
+        self.classes.retain(|id, _| live.contains(id));
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::class::ObjectClass;
 
     fn det(x: f64, y: f64, size: Option<(f64, f64)>) -> Detection {
         Detection {
@@ -250,5 +264,35 @@ mod tests {
         let mut far = [point(500.0)];
         sizer.apply(&mut far, &dets, &[7]);
         assert_eq!((far[0].bbox.width, far[0].bbox.height), (30.0, 12.0));
+    }
+
+    #[test]
+    fn points_take_the_nearest_detection_class_then_keep_it() {
+        let mut sizer = BoxFromDetections::new(20.0, (8.0, 8.0));
+        let point = |x: f64| {
+            let b = BBox::from_centre(Point::new(x, 0.0), 1.0, 1.0);
+            crate::track::point_at(1, 7, ObjectClass::Pedestrian, b)
+        };
+        // No detection yet: the point's own class stays.
+        let mut pts = [point(0.0)];
+        sizer.apply(&mut pts, &[], &[7]);
+        assert_eq!(pts[0].class, ObjectClass::Pedestrian);
+        // The nearest detection within the gate gives its class; one without a class does not.
+        let car = Detection {
+            class: Some(ObjectClass::Car),
+            ..det(5.0, 0.0, None)
+        };
+        let mut pts = [point(0.0)];
+        sizer.apply(&mut pts, &[car, det(15.0, 0.0, None)], &[7]);
+        assert_eq!(pts[0].class, ObjectClass::Car);
+        // Away from every detection the track keeps its last detected class.
+        let mut far = [point(500.0)];
+        sizer.apply(&mut far, &[det(0.0, 0.0, None)], &[7]);
+        assert_eq!(far[0].class, ObjectClass::Car);
+        // A track that ended is forgotten.
+        sizer.apply(&mut [], &[], &[]);
+        let mut again = [point(500.0)];
+        sizer.apply(&mut again, &[], &[7]);
+        assert_eq!(again[0].class, ObjectClass::Pedestrian);
     }
 }
