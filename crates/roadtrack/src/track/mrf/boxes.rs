@@ -320,6 +320,26 @@ fn optimal_pairs(
 mod tests {
     use super::*;
 
+    /// `apply_boxes` without appearance or class gate.
+    fn apply(
+        ids: &mut [ObjectId],
+        grid: &BlockGrid,
+        boxes: &[BBox],
+        revivable: &[(ObjectId, BBox)],
+        weights: Weights,
+        next_id: &mut ObjectId,
+    ) -> Vec<BoxOutcome> {
+        apply_boxes(
+            ids,
+            grid,
+            boxes,
+            revivable,
+            weights,
+            &|_, _| Some(0.0),
+            next_id,
+        )
+    }
+
     const W: Weights = Weights::GREEDY_IOU;
 
     fn grid() -> BlockGrid {
@@ -361,7 +381,7 @@ mod tests {
         let mut ids = vec![NO_OBJECT; g.len()];
         fill(&mut ids, &g, 2..5, 2..5, 7);
         let mut next = 10;
-        let out = apply_boxes(
+        let out = apply(
             &mut ids,
             &g,
             &[
@@ -370,7 +390,6 @@ mod tests {
             ],
             &[],
             W,
-            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(7), BoxOutcome::Started(10)]);
@@ -388,15 +407,7 @@ mod tests {
         let mut next = 4;
         let left = BBox::new(32.0, 32.0, 16.0, 24.0); // 2 × 3 blocks
         let right = BBox::new(48.0, 32.0, 32.0, 24.0); // 4 × 3 blocks
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[left, right],
-            &[],
-            W,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[left, right], &[], W, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(4), BoxOutcome::Matched(3)]);
         assert_eq!(ids.iter().filter(|&&i| i == 4).count(), 6);
         assert_eq!(ids.iter().filter(|&&i| i == 3).count(), 12);
@@ -410,13 +421,12 @@ mod tests {
         fill(&mut ids, &g, 2..6, 2..4, 1); // matched, with a tail outside its box
         fill(&mut ids, &g, 12..14, 12..14, 2); // no box this frame
         let mut next = 3;
-        let out = apply_boxes(
+        let out = apply(
             &mut ids,
             &g,
             &[BBox::new(16.0, 16.0, 16.0, 16.0)],
             &[],
             W,
-            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Matched(1)]);
@@ -431,13 +441,12 @@ mod tests {
         let mut ids = vec![NO_OBJECT; g.len()];
         let b = BBox::new(80.0, 80.0, 24.0, 16.0);
         let mut next = 9;
-        let out = apply_boxes(
+        let out = apply(
             &mut ids,
             &g,
             &[b],
             &[(5, BBox::new(82.0, 80.0, 24.0, 16.0))],
             W,
-            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
@@ -445,13 +454,12 @@ mod tests {
         assert_eq!(next, 9);
         // Too far from where it was expected: a new object.
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(
+        let out = apply(
             &mut ids,
             &g,
             &[b],
             &[(5, BBox::new(120.0, 80.0, 24.0, 16.0))],
             W,
-            &|_, _| Some(0.0),
             &mut next,
         );
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
@@ -467,30 +475,14 @@ mod tests {
         let b1 = BBox::new(16.0, 16.0, 32.0, 16.0);
         let b2 = BBox::new(40.0, 16.0, 24.0, 16.0);
         let mut next = 3;
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[b1, b2],
-            &[],
-            W,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[b1, b2], &[], W, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(5, 2)], 2, "the shared column stays with 2");
         // Unlabelled shared blocks go to the nearer box centre.
         let mut ids = vec![NO_OBJECT; g.len()];
         fill(&mut ids, &g, 2..4, 2..4, 1);
         fill(&mut ids, &g, 6..8, 2..4, 2);
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[b1, b2],
-            &[],
-            W,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[b1, b2], &[], W, &mut next);
         assert_eq!(out, vec![BoxOutcome::Matched(1), BoxOutcome::Matched(2)]);
         assert_eq!(ids[g.index(4, 2)], 1);
         assert_eq!(ids[g.index(5, 2)], 2);
@@ -513,40 +505,16 @@ mod tests {
         let expected = [(5, BBox::new(80.0, 80.0, 5.0, 7.0))];
         let mut next = 9;
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[b],
-            &expected,
-            NEW,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[b], &expected, NEW, &mut next);
         assert_eq!(out, vec![BoxOutcome::Revived(5)]);
         // Without the distance term (the matching before issue 14): a new object.
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[b],
-            &expected,
-            W,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[b], &expected, W, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(9)]);
         // Beyond the gate (max(8 px, 5 px)): a new object either way.
         let far = BBox::new(89.0, 80.0, 5.0, 7.0);
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[far],
-            &expected,
-            NEW,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[far], &expected, NEW, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(10)]);
     }
 
@@ -577,15 +545,7 @@ mod tests {
         let out = apply_boxes(&mut ids, &g, &[b], &expected, NEW, &looks, &mut next);
         assert_eq!(out, vec![BoxOutcome::Revived(2)]);
         let mut ids = vec![NO_OBJECT; g.len()];
-        let out = apply_boxes(
-            &mut ids,
-            &g,
-            &[b],
-            &expected,
-            NEW,
-            &|_, _| Some(0.0),
-            &mut next,
-        );
+        let out = apply(&mut ids, &g, &[b], &expected, NEW, &mut next);
         assert!(matches!(out[..], [BoxOutcome::Revived(1 | 2)]), "{out:?}");
     }
 }

@@ -749,6 +749,19 @@ mod tests {
         }
     }
 
+    /// The track id of each detection, frame by frame (frames numbered from 1).
+    fn ids_per_frame(
+        config: RelaxationTrackerConfig,
+        frames: &[Vec<Detection>],
+    ) -> Result<Vec<Vec<u64>>> {
+        let mut t = RelaxationTracker::new(config)?;
+        frames
+            .iter()
+            .zip(1..)
+            .map(|(d, f)| Ok(ids_by_detection(&t.step(f, 0.0, d)?)))
+            .collect()
+    }
+
     #[test]
     fn the_size_gate_keeps_a_pedestrian_track_off_a_truck() -> Result<()> {
         // A pedestrian (10 × 30 px) is hidden by a truck (90 × 50 px) whose centre passes
@@ -761,16 +774,14 @@ mod tests {
                 boxed(3, 2, 114.0, (90.0, 50.0)),
             ],
         ];
-        let ids = |gate: f64| -> Result<Vec<Vec<u64>>> {
-            let mut t = RelaxationTracker::new(RelaxationTrackerConfig {
-                size_ratio_gate: gate,
-                ..Default::default()
-            })?;
-            frames
-                .iter()
-                .zip(1..)
-                .map(|(d, f)| Ok(ids_by_detection(&t.step(f, 0.0, d)?)))
-                .collect()
+        let ids = |gate: f64| {
+            ids_per_frame(
+                RelaxationTrackerConfig {
+                    size_ratio_gate: gate,
+                    ..Default::default()
+                },
+                &frames,
+            )
         };
         // Without the gate the pedestrian's track takes the truck.
         assert_eq!(ids(0.0)?[1], vec![1]);
@@ -806,16 +817,14 @@ mod tests {
                 with(boxed(3, 2, 106.0, (12.0, 30.0)), ObjectClass::Car),
             ],
         ];
-        let ids = |gate: bool| -> Result<Vec<Vec<u64>>> {
-            let mut t = RelaxationTracker::new(RelaxationTrackerConfig {
-                keep_classes_apart: gate,
-                ..Default::default()
-            })?;
-            frames
-                .iter()
-                .zip(1..)
-                .map(|(d, f)| Ok(ids_by_detection(&t.step(f, 0.0, d)?)))
-                .collect()
+        let ids = |gate: bool| {
+            ids_per_frame(
+                RelaxationTrackerConfig {
+                    keep_classes_apart: gate,
+                    ..Default::default()
+                },
+                &frames,
+            )
         };
         // Without the gate the pedestrian's track takes the car.
         assert_eq!(ids(false)?[1], vec![1]);
