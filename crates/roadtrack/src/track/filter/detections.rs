@@ -270,16 +270,20 @@ impl DetectionLikelihoodConfig {
 
 /// Greedy one-to-one assignment: pairs `(object, measurement)` with squared Mahalanobis
 /// distance at most `gate²`, taken closest first (ties by object, then measurement index),
-/// each object and measurement at most once. `objects`: predicted mean and the variance of
-/// the prediction per axis.
+/// each object and measurement at most once, never a pair `allowed(object, measurement)`
+/// refuses. `objects`: predicted mean and the variance of the prediction per axis.
 pub fn assign_closest(
     objects: &[(Point, Point)],
     measurements: &[BoxMeasurement],
     gate: f64,
+    allowed: &dyn Fn(usize, usize) -> bool,
 ) -> Vec<Option<usize>> {
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (i, (p, var)) in objects.iter().enumerate() {
         for (j, m) in measurements.iter().enumerate() {
+            if !allowed(i, j) {
+                continue;
+            }
             let vx = var.x + m.sigma.x * m.sigma.x;
             let vy = var.y + m.sigma.y * m.sigma.y;
             let d2 = (p.x - m.pos.x).powi(2) / vx + (p.y - m.pos.y).powi(2) / vy;
@@ -340,7 +344,10 @@ mod tests {
             (Point::new(50.0, 0.0), Point::new(0.0, 0.0)),
         ];
         // Object 1 is closest to the measurement at 0.9; object 0 takes the one at -2.
-        let got = assign_closest(&objects, &[m(0.9), m(-2.0)], 4.0);
+        let got = assign_closest(&objects, &[m(0.9), m(-2.0)], 4.0, &|_, _| true);
         assert_eq!(got, vec![Some(1), Some(0), None]);
+        // Object 1 may not take the first: object 0 does, and object 1 the other.
+        let got = assign_closest(&objects, &[m(0.9), m(-2.0)], 4.0, &|i, j| (i, j) != (1, 0));
+        assert_eq!(got, vec![Some(0), Some(1), None]);
     }
 }

@@ -57,6 +57,10 @@ pub struct ParticleFilterConfig {
     pub object_height_px: f64,
     /// Class written when the detection gave none. Default unknown.
     pub class: ObjectClass,
+    /// With detections as measurements (ours): an object whose last detection was a
+    /// pedestrian never takes a car, lorry or bus detection, nor the reverse
+    /// ([`ObjectClass::may_be_same_object`]). Default true.
+    pub keep_classes_apart: bool,
 }
 
 impl Default for ParticleFilterConfig {
@@ -73,6 +77,7 @@ impl Default for ParticleFilterConfig {
             object_width_px: 32.0,
             object_height_px: 32.0,
             class: ObjectClass::Unknown,
+            keep_classes_apart: true,
         }
     }
 }
@@ -385,7 +390,20 @@ impl ParticleFilterTracker {
             .iter()
             .map(|o| mean_and_variance(&o.particles))
             .collect();
-        let assigned = assign_closest(&predicted, measurements, model.pf_gate_sigmas);
+        let gate_classes = self.config.keep_classes_apart;
+        let objects = &self.objects;
+        let allowed = |i: usize, j: usize| {
+            !gate_classes
+                || detections
+                    .get(j)
+                    .and_then(|d| d.class.as_ref())
+                    .is_none_or(|c| {
+                        objects
+                            .get(i)
+                            .is_none_or(|o| c.may_be_same_object(&o.class))
+                    })
+        };
+        let assigned = assign_closest(&predicted, measurements, model.pf_gate_sigmas, &allowed);
         let (pd, kappa) = (
             model.detection_prob,
             model.clutter_per_frame
@@ -441,6 +459,9 @@ impl ParticleFilterTracker {
                 // The detection's box and class describe the object from now on.
                 if let Some(size) = detections.get(j).and_then(|d| d.size_px) {
                     o.size_px = size;
+                }
+                if let Some(class) = detections.get(j).and_then(|d| d.class.clone()) {
+                    o.class = class;
                 }
             }
         }
@@ -588,6 +609,48 @@ mod tests {
             out.extend(tracker.step(f, d)?);
         }
         Ok(out)
+    }
+
+    #[test]
+    fn with_detections_a_walker_never_takes_a_car_detection() -> Result<()> {
+        // A pedestrian is born in frame 1; in frame 2 only a car is detected 2 px away.
+        let image = RgbImage::new(320, 240);
+        let frame = |index: u32| Frame {
+            index,
+            time_s: f64::from(index - 1) / 10.0,
+            image: image.clone(),
+        };
+        let det = |f: u32, x: f64, class: ObjectClass| Detection {
+            class: Some(class),
+            size_px: Some((12.0, 30.0)),
+            ..Detection::at(f, 1, Point::new(x, 100.0))
+        };
+        let model = DetectionLikelihoodConfig::default();
+        let ids = |gate: bool| -> Result<Vec<Vec<u64>>> {
+            let b = BBox::from_centre(Point::new(100.0, 100.0), 20.0, 20.0);
+            let shared = ColourLikelihood::from_boxes(colour_cfg(), &image, &[b])?;
+            let cfg = ParticleFilterConfig {
+                keep_classes_apart: gate,
+                ..Default::default()
+            };
+            let mut t = ParticleFilterTracker::new(cfg, Box::new(shared), 1)?;
+            let mut out = Vec::new();
+            for (f, class, x) in [
+                (1, ObjectClass::Pedestrian, 100.0),
+                (2, ObjectClass::Car, 102.0),
+            ] {
+                let d = [det(f, x, class)];
+                let z = model.measurements(&d);
+                let pts = t.step_with_detections(&frame(f), &d, &z, &model, false)?;
+                out.push(pts.iter().map(|p| p.id).collect());
+            }
+            Ok(out)
+        };
+        // Without the gate the walker's object takes the car; with it the car is born as
+        // object 2 (the walker's object, left without a detection, is not in the output).
+        assert_eq!(ids(false)?, vec![vec![1], vec![1]]);
+        assert_eq!(ids(true)?, vec![vec![1], vec![2]]);
+        Ok(())
     }
 
     #[test]

@@ -474,7 +474,7 @@ fn update_sizes(
         .iter()
         .map(|e| (e.pos, Point::default()))
         .collect();
-    let matched = crate::track::filter::detections::assign_closest(&objects, &z, 3.0);
+    let matched = crate::track::filter::detections::assign_closest(&objects, &z, 3.0, &|_, _| true);
     for (e, k) in estimates.iter().zip(matched) {
         if let Some(k) = k {
             label_size.insert(e.label, sizes[sized[k]]);
