@@ -127,8 +127,9 @@ pub fn one_to_one(tracked: &[(u64, Point)], detections: &[Detection], gate: f64)
 }
 
 /// Box sizes for trackers that estimate positions only: each point takes the size of the
-/// nearest detection within the gate, else its track's last size, else a default; and
-/// likewise the detection's class, else its track's last detected class, else its own.
+/// nearest detection within the gate, else its track's last size, else a default; and a
+/// point of unknown class likewise the detection's class, else its track's last detected
+/// class.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxFromDetections {
     /// Largest centre distance to a detection that lends its size, px.
@@ -165,14 +166,18 @@ impl BoxFromDetections {
             if let Some(size) = near.and_then(|d| d.size_px) {
                 self.sizes.insert(p.id, size);
             }
-            // Choice: the PHD's labels carry no class and a PF object keeps its birth
-            // detection's; the class comes from the detection that lends the size, so the
-            // life cycle's majority vote sees the detector's classes.
-            if let Some(class) = near.and_then(|d| d.class.clone()) {
-                self.classes.insert(p.id, class);
-            }
-            if let Some(class) = self.classes.get(&p.id) {
-                p.class = class.clone();
+            // Choice: a point of unknown class (the PHD's labels carry none) takes the class
+            // of the detection that lends the size, so the life cycle's majority vote sees
+            // the detector's classes. A point that has one (a PF object's, its last assigned
+            // detection's, which its class gate used) keeps it: the nearest detection may be
+            // a neighbour's.
+            if p.class == ObjectClass::Unknown {
+                if let Some(class) = near.and_then(|d| d.class.clone()) {
+                    self.classes.insert(p.id, class);
+                }
+                if let Some(class) = self.classes.get(&p.id) {
+                    p.class = class.clone();
+                }
             }
             let (w, h) = self
                 .sizes
@@ -269,30 +274,35 @@ mod tests {
     #[test]
     fn points_take_the_nearest_detection_class_then_keep_it() {
         let mut sizer = BoxFromDetections::new(20.0, (8.0, 8.0));
-        let point = |x: f64| {
+        let point = |x: f64, class: ObjectClass| {
             let b = BBox::from_centre(Point::new(x, 0.0), 1.0, 1.0);
-            crate::track::point_at(1, 7, ObjectClass::Pedestrian, b)
+            crate::track::point_at(1, 7, class, b)
         };
-        // No detection yet: the point's own class stays.
-        let mut pts = [point(0.0)];
+        let unknown = |x: f64| point(x, ObjectClass::Unknown);
+        // No detection yet: the point stays unknown.
+        let mut pts = [unknown(0.0)];
         sizer.apply(&mut pts, &[], &[7]);
-        assert_eq!(pts[0].class, ObjectClass::Pedestrian);
+        assert_eq!(pts[0].class, ObjectClass::Unknown);
         // The nearest detection within the gate gives its class; one without a class does not.
         let car = Detection {
             class: Some(ObjectClass::Car),
             ..det(5.0, 0.0, None)
         };
-        let mut pts = [point(0.0)];
-        sizer.apply(&mut pts, &[car, det(15.0, 0.0, None)], &[7]);
+        let mut pts = [unknown(0.0)];
+        sizer.apply(&mut pts, &[car.clone(), det(15.0, 0.0, None)], &[7]);
         assert_eq!(pts[0].class, ObjectClass::Car);
         // Away from every detection the track keeps its last detected class.
-        let mut far = [point(500.0)];
+        let mut far = [unknown(500.0)];
         sizer.apply(&mut far, &[det(0.0, 0.0, None)], &[7]);
         assert_eq!(far[0].class, ObjectClass::Car);
+        // A point with a class of its own (a PF object's) keeps it beside a car.
+        let mut walker = [point(0.0, ObjectClass::Pedestrian)];
+        sizer.apply(&mut walker, std::slice::from_ref(&car), &[7]);
+        assert_eq!(walker[0].class, ObjectClass::Pedestrian);
         // A track that ended is forgotten.
         sizer.apply(&mut [], &[], &[]);
-        let mut again = [point(500.0)];
+        let mut again = [unknown(500.0)];
         sizer.apply(&mut again, &[], &[7]);
-        assert_eq!(again[0].class, ObjectClass::Pedestrian);
+        assert_eq!(again[0].class, ObjectClass::Unknown);
     }
 }
