@@ -453,6 +453,15 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
         }
     }
     assert!(text.starts_with("step,learning_rate,heat,boxes,total"));
+    // A motorcycle share outside [0, 1): exit 2 naming the flag, before any training.
+    let o = bin()
+        .args(["-q", "train", "--detector", "--motorcycle-share", "1", "-o"])
+        .arg(dir.path().join("never.onnx"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--motorcycle-share"), "{}", stderr(&o));
+    assert!(!dir.path().join("never.onnx").exists());
     // The written model runs as --detector cnn.
     let o = bin()
         .arg("detect")

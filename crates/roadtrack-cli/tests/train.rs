@@ -179,3 +179,23 @@ fn train_without_data_is_a_usage_error() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("/no/such/seq"), "{}", stderr(&o));
 }
+
+#[test]
+fn detector_training_flags_without_detector_are_a_usage_error() {
+    let o = bin()
+        .args([
+            "train",
+            "--sequence",
+            "/no/such/seq",
+            "--motorcycle-share",
+            "0.3",
+        ])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--motorcycle-share: only with --detector"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -349,6 +349,13 @@ fn bad_crop_scales_are_refused_by_name() {
             },
             "box_class_weights",
         ),
+        (
+            DataConfig {
+                motorcycle_share: Some(1.0),
+                ..DataConfig::default()
+            },
+            "motorcycle_share",
+        ),
     ] {
         let cfg = TrainConfig {
             data,
@@ -469,4 +476,39 @@ fn starting_weights_with_other_preprocessing_are_refused_by_name() -> Result<()>
     let err = cfg.validate().expect_err("other preprocessing").to_string();
     assert!(err.contains("init"), "{err}");
     Ok(())
+}
+
+#[test]
+fn the_motorcycle_share_sets_the_episodes_mix_and_nothing_else() {
+    use crate::data::random_sim_config;
+    use rand::SeedableRng;
+    let draw = |share: Option<f64>| {
+        let data = DataConfig {
+            motorcycle_share: share,
+            ..DataConfig::default()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(11);
+        (0..5)
+            .map(|_| random_sim_config(&mut rng, &data))
+            .collect::<Vec<_>>()
+    };
+    let plain = draw(None);
+    let more = draw(Some(0.3));
+    for (a, b) in plain.iter().zip(&more) {
+        let v = &b.vehicles;
+        let all = v.car.share + v.truck.share + v.bus.share + v.motorcycle.share;
+        assert!((v.motorcycle.share / all - 0.3).abs() < 1e-12);
+        // The same draws otherwise: the share takes nothing from the episode's RNG.
+        let mut b = b.clone();
+        b.vehicles.motorcycle.share = a.vehicles.motorcycle.share;
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    }
+    let v = &plain[0].vehicles;
+    assert_eq!(
+        v.motorcycle.share,
+        roadtrack_sim::SimConfig::default()
+            .vehicles
+            .motorcycle
+            .share
+    );
 }

@@ -113,6 +113,11 @@ impl TrainConfig {
                 format!("each must be in [0, 100], got {:?}", d.box_class_weights),
             );
         }
+        if let Some(m) = d.motorcycle_share
+            && !(0.0..1.0).contains(&m)
+        {
+            return bad("motorcycle_share", format!("must be in [0, 1), got {m}"));
+        }
         if !(d.scale_range.0 > 0.0 && d.scale_range.0 < d.scale_range.1) {
             return bad(
                 "scale_range",

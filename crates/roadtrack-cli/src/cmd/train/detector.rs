@@ -60,6 +60,11 @@ pub struct DetectorTrainArgs {
     /// car, bus/truck, bicycle/motorcycle and pedestrian [default: 1,1,1,1].
     #[arg(long, value_name = "W,W,W,W", value_delimiter = ',')]
     pub box_class_weights: Option<Vec<f32>>,
+    /// --detector: share of the simulated vehicles that are motorcycles, in [0, 1)
+    /// [default: the simulator's 0.08]. Tried at 0.3 and not kept (docs/EXPERIMENTS.md
+    /// "More motorcycles in training").
+    #[arg(long, value_name = "SHARE")]
+    pub motorcycle_share: Option<f64>,
     /// --detector: no training; copy the learned detector given as --init (.onnx) to -o with
     /// this box gain in its metadata: a_w, b_w, a_h, b_h for car, bus/truck,
     /// bicycle/motorcycle and pedestrian (16 numbers; each side's factor is e^(a + b
@@ -92,6 +97,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--clip-to-crop", a.clip_to_crop),
             ("--edge-crops", a.edge_crops.is_some()),
             ("--box-class-weights", a.box_class_weights.is_some()),
+            ("--motorcycle-share", a.motorcycle_share.is_some()),
             ("--box-gain", a.box_gain.is_some()),
         ],
         "only with --detector",
@@ -246,6 +252,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
         }
         config.data.box_class_weights.copy_from_slice(v);
     }
+    config.data.motorcycle_share = d.motorcycle_share;
     if let Some(v) = args.batch_size {
         config.batch = v;
     }
@@ -266,6 +273,11 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
                 "box_class_weights",
                 "--box-class-weights",
                 d.box_class_weights.is_some(),
+            ),
+            (
+                "motorcycle_share",
+                "--motorcycle-share",
+                d.motorcycle_share.is_some(),
             ),
             ("batch", "--batch-size", args.batch_size.is_some()),
             (
