@@ -20,12 +20,16 @@ and by what became of A: `A->other` (A went on covering another object) or `A en
 
 DEMO_DIR is the output of `roadtrack demo --no-video -o DEMO_DIR`. Prints, per method, the
 changes by kind and the trips covered by one track from end to end; with --detail, every
-trip's changes. Not part of the test suite; needs only Python 3.
+trip's changes. Not part of the test suite; needs only Python 3 (run from anywhere).
 """
 import argparse
 import collections
 import csv
 import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from detection_compare import greedy_match  # noqa: E402
 
 KINDS = [(k, a) for k in ("fresh", "stolen", "resumed") for a in ("A->other", "A ended")]
 
@@ -63,14 +67,6 @@ def read_mot(path):
     return frames
 
 
-def iou(a, b):
-    ix = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    iy = max(0.0, min(a[2] + a[4], b[2] + b[4]) - max(a[2], b[2]))
-    inter = ix * iy
-    union = a[3] * a[4] + b[3] * b[4] - inter
-    return inter / union if union > 0 else 0.0
-
-
 def coverage(gt, tracks, min_iou):
     """cover[truth][frame] = track, owner[track][frame] = truth, first[track] = frame."""
     cover = collections.defaultdict(dict)
@@ -79,18 +75,10 @@ def coverage(gt, tracks, min_iou):
     for fr in sorted(set(gt) | set(tracks)):
         for t in tracks.get(fr, []):
             first.setdefault(t[0], fr)
-        pairs = sorted(((iou(g, t), g[0], t[0]) for g in gt.get(fr, []) for t in tracks.get(fr, [])),
-                       reverse=True)
-        used_g, used_t = set(), set()
-        for s, g, t in pairs:
-            if s < min_iou:
-                break
-            if g in used_g or t in used_t:
-                continue
-            used_g.add(g)
-            used_t.add(t)
-            cover[g][fr] = t
-            owner[t][fr] = g
+        gs, ts = gt.get(fr, []), tracks.get(fr, [])
+        for i, j, _ in greedy_match([g[1:] for g in gs], [t[1:] for t in ts], min_iou):
+            cover[gs[i][0]][fr] = ts[j][0]
+            owner[ts[j][0]][fr] = gs[i][0]
     return cover, owner, first
 
 
