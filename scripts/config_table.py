@@ -19,7 +19,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from video_tracking_table import evaluate, run, sequence  # noqa: E402
+from video_tracking_table import evaluate, learned_detections, run, sequence  # noqa: E402
 
 SCENES = [(s, v) for s in ("road", "intersection", "crossing") for v in ("aerial", "oblique")]
 
@@ -46,12 +46,7 @@ def main():
                 hota = []
                 for seed in seeds:
                     seq = sequence(rt, a.work, scene, view, seed, a.frames)
-                    extra = []
-                    if source == "learned":
-                        dets = f"{seq}/cnn_g.csv"
-                        if not os.path.exists(dets):
-                            run([rt, "-q", "detect", seq, "--detector", "cnn", "-o", dets])
-                        extra = ["--detections", dets]
+                    extra = learned_detections(rt, seq, "cnn_g.csv") if source == "learned" else []
                     out = f"{seq}/t_{a.method}_{name}_{source}.txt"
                     run([rt, "-q", "track", seq, "--method", a.method, "--detector", "file",
                          *extra, *(["--config", path] if path else []), "-o", out])

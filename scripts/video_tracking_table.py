@@ -59,6 +59,14 @@ def sequence(rt, work, scene, view, seed, frames):
     return seq
 
 
+def learned_detections(rt, seq, name):
+    """`--detections SEQ/NAME`: the learned detector's boxes, found once per sequence."""
+    boxes = f"{seq}/{name}"
+    if not os.path.exists(boxes):
+        run([rt, "-q", "detect", seq, "--detector", "cnn", "-o", boxes])
+    return ["--detections", boxes]
+
+
 def add_common_arguments(ap):
     """The binary, the sequences and the methods: what scripts/smooth_table.py takes too."""
     ap.add_argument("--roadtrack", default="roadtrack")

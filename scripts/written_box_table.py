@@ -25,7 +25,7 @@ import sys
 from collections import defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from video_tracking_table import add_common_arguments, evaluate, run  # noqa: E402
+from video_tracking_table import add_common_arguments, evaluate, learned_detections, run  # noqa: E402
 
 RELAXATION = "configs/relaxation-video.toml"
 FILTERS = "configs/filters-pedestrians.toml"
@@ -87,12 +87,7 @@ def main():
                     mog2_norfair.main(seq, t)
                     results[(sv, "MOG2 + norfair", "peer", "")].append(evaluate(rt, seq, t))
                 for source in a.sources.split(","):
-                    dets = []
-                    if source == "cnn":
-                        boxes = f"{seq}/written_cnn.csv"
-                        if not os.path.exists(boxes):
-                            run([rt, "-q", "detect", seq, "--detector", "cnn", "-o", boxes])
-                        dets = ["--detections", boxes]
+                    dets = learned_detections(rt, seq, "written_cnn.csv") if source == "cnn" else []
                     for method in methods:
                         for name, extra in zip(("before", "now"), flags[method]):
                             run([rt, "-q", "track", seq, "--method", method, "--detector",
