@@ -139,8 +139,8 @@ const MRF_INTERSECTION: &str = include_str!("../../../../configs/mrf-intersectio
 /// The demo's MRF: the settings of `configs/mrf-intersection.toml` (objects kept 25 frames
 /// without a box, a sharper appearance term).
 // Choice: that file, not the MRF's defaults, as relaxation and the filters run with theirs.
-// On the demo's whole cycle (seeds 0-2) it lifts the MRF's HOTA by 0.016-0.029 with the
-// learned detector and 0.008-0.016 with the sequence's detections (docs/EXPERIMENTS.md
+// On the demo's whole cycle (seeds 0-2) it lifts the MRF's HOTA by 0.016-0.027 with the
+// learned detector and 0.006-0.016 with the sequence's detections (docs/EXPERIMENTS.md
 // "The MRF at junctions").
 pub fn demo_mrf() -> Result<MrfConfig> {
     built_in(MRF_INTERSECTION, "configs/mrf-intersection.toml")
