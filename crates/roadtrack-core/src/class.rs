@@ -67,6 +67,15 @@ impl ObjectClass {
         !(car_like(self) && on_foot(other) || on_foot(self) && car_like(other))
     }
 
+    /// [`ObjectClass::may_be_same_object`] for classes that may be missing (a detection or
+    /// track without one): a missing class goes with anything, as `Unknown` does.
+    pub fn may_be_same_object_if_known(a: Option<&ObjectClass>, b: Option<&ObjectClass>) -> bool {
+        match (a, b) {
+            (Some(a), Some(b)) => a.may_be_same_object(b),
+            _ => true,
+        }
+    }
+
     /// The MOT17 class number written in ground-truth files.
     ///
     /// MOT17 numbers: 1 pedestrian, 3 car, 4 bicycle, 5 motorbike, 6 non-MOT vehicle.
@@ -173,7 +182,13 @@ mod tests {
                 );
                 assert_eq!(a.may_be_same_object(b), !apart, "{a:?} {b:?}");
                 assert_eq!(a.may_be_same_object(b), b.may_be_same_object(a));
+                assert_eq!(
+                    ObjectClass::may_be_same_object_if_known(Some(a), Some(b)),
+                    !apart
+                );
             }
+            assert!(ObjectClass::may_be_same_object_if_known(Some(a), None));
+            assert!(ObjectClass::may_be_same_object_if_known(None, Some(a)));
         }
     }
 

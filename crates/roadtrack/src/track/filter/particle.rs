@@ -394,14 +394,10 @@ impl ParticleFilterTracker {
         let objects = &self.objects;
         let allowed = |i: usize, j: usize| {
             !gate_classes
-                || detections
-                    .get(j)
-                    .and_then(|d| d.class.as_ref())
-                    .is_none_or(|c| {
-                        objects
-                            .get(i)
-                            .is_none_or(|o| c.may_be_same_object(&o.class))
-                    })
+                || ObjectClass::may_be_same_object_if_known(
+                    detections.get(j).and_then(|d| d.class.as_ref()),
+                    objects.get(i).map(|o| &o.class),
+                )
         };
         let assigned = assign_closest(&predicted, measurements, model.pf_gate_sigmas, &allowed);
         let (pd, kappa) = (

@@ -462,11 +462,10 @@ impl MrfTracker {
                 let extra = |j: usize, id: ObjectId| -> Option<f64> {
                     let object = objects.get(&id);
                     if gate
-                        && let (Some(c), Some((_, last, _))) = (
+                        && !ObjectClass::may_be_same_object_if_known(
                             dets.get(j).and_then(|d| d.class.as_ref()),
-                            object.and_then(|o| o.last.as_ref()),
+                            object.and_then(|o| o.last.as_ref()).map(|(_, c, _)| c),
                         )
-                        && !c.may_be_same_object(last)
                     {
                         return None;
                     }

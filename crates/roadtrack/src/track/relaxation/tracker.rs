@@ -375,10 +375,7 @@ impl RelaxationTracker {
     /// ([`RelaxationTrackerConfig::keep_classes_apart`]).
     fn may_continue(&self, track: &Track, d: &Detection) -> bool {
         let classes = !self.config.keep_classes_apart
-            || match (&track.class, &d.class) {
-                (Some(a), Some(b)) => a.may_be_same_object(b),
-                _ => true,
-            };
+            || ObjectClass::may_be_same_object_if_known(track.class.as_ref(), d.class.as_ref());
         classes && self.sizes_match(track, d)
     }
 
