@@ -3,23 +3,26 @@
 "The MRF at junctions"): `track --detector file` on the sequence's own detections
 (det/det.txt) and on the learned detector's boxes (`detect --detector cnn`, found once per
 sequence into SEQ/cnn_g.csv, as scripts/detections_table.py's variant `g`), scored
-class-agnostic by `roadtrack evaluate`. Prints HOTA means over the seeds, one row per
-config and detections, one column per scene.
+class-agnostic by `roadtrack evaluate`, beside norfair's IoU tracker (scripts/norfair_peer.py)
+on the same detections. Prints HOTA means over the seeds, one row per tracker or config and
+detections, one column per scene.
 
     python3 scripts/config_table.py --roadtrack $CARGO_TARGET_DIR/release/roadtrack \\
         --method mrf --config defaults= --config junction=configs/mrf-intersection.toml \\
         [--frames 300] [--seeds 1,2,3] [--work /tmp/vidtrack]
 
-`NAME=` (no path) runs the method's defaults. Run from the repository root. Not part of the
-test suite; needs what scripts/video_tracking_table.py imports (`pip install
-opencv-python-headless numpy norfair`).
+`NAME=` (no path) runs the method's defaults; the peer's rows come first. Run from the
+repository root. Not part of the test suite; needs `pip install opencv-python-headless
+numpy norfair` (scripts/video_tracking_table.py and the peer import them).
 """
 import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from detection_compare import read_ours  # noqa: E402
 from video_tracking_table import evaluate, learned_detections, run, sequence  # noqa: E402
+import norfair_peer  # noqa: E402
 
 SCENES = [(s, v) for s in ("road", "intersection", "crossing") for v in ("aerial", "oblique")]
 
@@ -39,7 +42,7 @@ def main():
     os.makedirs(a.work, exist_ok=True)
     print("| config | detections | " + " | ".join(f"{s} {v}" for s, v in SCENES) + " |")
     print("| --- | --- |" + " ---: |" * len(SCENES))
-    for name, path in configs:
+    for name, path in [("norfair (peer)", None)] + configs:
         for source in ("det.txt", "learned"):
             cells = []
             for scene, view in SCENES:
@@ -47,6 +50,14 @@ def main():
                 for seed in seeds:
                     seq = sequence(rt, a.work, scene, view, seed, a.frames)
                     extra = learned_detections(rt, seq, "cnn_g.csv") if source == "learned" else []
+                    if path is None:  # the peer on the same detections
+                        out = f"{seq}/t_norfair_{source}.txt"
+                        if source == "learned":
+                            norfair_peer.track(read_ours(extra[1]), norfair_peer.seq_length(seq), out)
+                        else:
+                            norfair_peer.main(seq, out)
+                        hota.append(evaluate(rt, seq, out)["HOTA"])
+                        continue
                     out = f"{seq}/t_{a.method}_{name}_{source}.txt"
                     run([rt, "-q", "track", seq, "--method", a.method, "--detector", "file",
                          *extra, *(["--config", path] if path else []), "-o", out])
