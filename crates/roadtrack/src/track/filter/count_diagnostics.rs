@@ -21,9 +21,34 @@ const PARTS: [&str; 9] = [
     "unlabelled mass",
 ];
 
-/// One frame's parts of `Σw − true` (they sum to it), in the order of [`PARTS`].
-/// Labels, heaviest first, take the closest free object (visible at all) within half its
-/// box's longer side + 3 px; a label whose objects are all taken is a duplicate.
+/// What each label lies on: labels, heaviest first, take the closest free object within
+/// half its box's longer side + 3 px (`truth`: centre, that half side). `Some((t, true))`:
+/// the label took object `t`; `Some((t, false))`: every object in reach was taken, `t` the
+/// nearest (a duplicate); `None`: no object in reach.
+fn match_labels(labels: &[(Point, f64)], truth: &[(Point, f64)]) -> Vec<Option<(usize, bool)>> {
+    let mut on = vec![None; labels.len()];
+    let mut order: Vec<usize> = (0..labels.len()).collect();
+    order.sort_by(|&a, &b| labels[b].1.total_cmp(&labels[a].1).then(a.cmp(&b)));
+    let mut taken = vec![false; truth.len()];
+    for &l in &order {
+        let pos = labels[l].0;
+        let mut best: Option<(usize, f64, bool)> = None;
+        for (t, &(tp, half)) in truth.iter().enumerate() {
+            let d = pos.distance(tp);
+            if d <= half + 3.0 && best.is_none_or(|(_, bd, bf)| (!taken[t], -d) > (!bf, -bd)) {
+                best = Some((t, d, taken[t]));
+            }
+        }
+        on[l] = best.map(|(t, _, was_taken)| {
+            taken[t] = true;
+            (t, !was_taken)
+        });
+    }
+    on
+}
+
+/// One frame's parts of `Σw − true` (they sum to it), in the order of [`PARTS`], labels
+/// matched to the objects visible at all by [`match_labels`].
 fn split_frame(
     labels: &[(Point, f64)],
     total: f64,
@@ -31,20 +56,11 @@ fn split_frame(
     detections: &[Point],
 ) -> [f64; 9] {
     let mut parts = [0.0; 9];
-    let mut order: Vec<usize> = (0..labels.len()).collect();
-    order.sort_by(|&a, &b| labels[b].1.total_cmp(&labels[a].1).then(a.cmp(&b)));
+    let reach: Vec<(Point, f64)> = truth.iter().map(|t| (t.0, t.1)).collect();
     let mut taken = vec![false; truth.len()];
-    for &l in &order {
-        let (pos, w) = labels[l];
-        let mut best: Option<(usize, f64, bool)> = None;
-        for (t, &(tp, half, _, _, _)) in truth.iter().enumerate() {
-            let d = pos.distance(tp);
-            if d <= half + 3.0 && best.is_none_or(|(_, bd, bf)| (!taken[t], -d) > (!bf, -bd)) {
-                best = Some((t, d, taken[t]));
-            }
-        }
-        match best {
-            Some((t, _, false)) => {
+    for (&(_, w), on) in labels.iter().zip(match_labels(labels, &reach)) {
+        match on {
+            Some((t, true)) => {
                 taken[t] = true;
                 let (_, _, vis, entering, border) = truth[t];
                 if vis >= 0.3 {
@@ -60,7 +76,7 @@ fn split_frame(
                     parts[5] += w;
                 }
             }
-            Some((_, _, true)) => parts[6] += w,
+            Some((_, false)) => parts[6] += w,
             None => parts[7] += w,
         }
     }
@@ -170,6 +186,98 @@ fn count_error_split_experiment() -> Result<()> {
                 sums[k] / n,
                 abs_without[k] / n
             );
+        }
+    }
+    Ok(())
+}
+
+/// One row per PHD label and frame for `scripts/count_calibration.py`: the label's weight,
+/// its misses in a row (0: detected this frame) and what it lies on, matched as in
+/// [`split_frame`] (`V` an object ≥ 0.3 visible, `H` one under 0.3, `D` an object another
+/// label took, `N` none; `E` marks a frame without labels), with the frame's true count.
+/// `configs/filters-pedestrians.toml`, 300 frames; writes `RT_OUT/SCENE_SEED.csv`. Run
+/// with `RT_OUT=/tmp/count_probe RT_SEEDS=1,2,3,4,5,6 cargo test --release -p roadtrack
+/// --lib count_after_miss_probe -- --ignored` (env `RT_SCENES` as above).
+#[test]
+#[ignore = "experiment, writes CSV files"]
+fn count_after_miss_probe() -> Result<()> {
+    use std::collections::BTreeMap;
+    use std::fmt::Write as _;
+    let cfg = FilterTrackConfig::from_toml_file(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/filters-pedestrians.toml"
+    )))?;
+    let out_dir = std::env::var("RT_OUT").unwrap_or_else(|_| "/tmp/count_probe".to_owned());
+    std::fs::create_dir_all(&out_dir).map_err(|e| crate::error::Error::io(&out_dir, e))?;
+    let scenes = std::env::var("RT_SCENES").unwrap_or_else(|_| "crossing".to_owned());
+    let seeds = std::env::var("RT_SEEDS").unwrap_or_else(|_| "1,2,3".to_owned());
+    for name in scenes.split(',') {
+        let (scene, view) = match name {
+            "road" => (SceneKind::Road, ViewKind::Aerial),
+            "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
+            _ => (SceneKind::Crossing, ViewKind::Oblique),
+        };
+        for seed in seeds.split(',') {
+            let seed: u64 = seed
+                .trim()
+                .parse()
+                .map_err(|_| crate::error::Error::Invalid(format!("RT_SEEDS: {seed}")))?;
+            let mut csv = String::from("frame,label,w,misses,on,true_count\n");
+            let sim = SimConfig {
+                scene,
+                view,
+                frames: 300,
+                ..Default::default()
+            };
+            let mut tracker = FilterTracker::new(FilterMethod::Phd, &cfg, seed, None)?;
+            let mut misses: BTreeMap<u32, u32> = BTreeMap::new();
+            for step in Simulation::new(&sim, seed)? {
+                let step = step?;
+                let d = FrameDetections {
+                    detections: step.detections.clone(),
+                    foreground: None,
+                };
+                tracker.step(&step.frame, &d)?;
+                let labels = tracker.phd_labels();
+                let detected = tracker.phd_detected_labels();
+                misses = labels
+                    .iter()
+                    .map(|e| {
+                        let k = if detected.contains(&e.label) {
+                            0
+                        } else {
+                            misses.get(&e.label).map_or(1, |k| k + 1)
+                        };
+                        (e.label, k)
+                    })
+                    .collect();
+                let truth: Vec<_> = step.truth.iter().filter(|t| t.visibility > 0.0).collect();
+                let reach: Vec<(Point, f64)> = truth
+                    .iter()
+                    .map(|t| (t.bbox.centre(), 0.5 * t.bbox.width.max(t.bbox.height)))
+                    .collect();
+                let seen = truth.iter().filter(|t| t.visibility >= 0.3).count();
+                let weighed: Vec<(Point, f64)> = labels.iter().map(|e| (e.pos, e.weight)).collect();
+                let f = step.frame.index;
+                for (e, on) in labels.iter().zip(match_labels(&weighed, &reach)) {
+                    let on = match on {
+                        Some((t, true)) if truth[t].visibility >= 0.3 => 'V',
+                        Some((_, true)) => 'H',
+                        Some((_, false)) => 'D',
+                        None => 'N',
+                    };
+                    let _ = writeln!(
+                        csv,
+                        "{f},{},{},{},{on},{seen}",
+                        e.label, e.weight, misses[&e.label]
+                    );
+                }
+                if labels.is_empty() {
+                    let _ = writeln!(csv, "{f},0,0,0,E,{seen}");
+                }
+            }
+            let path = format!("{out_dir}/{name}_{seed}.csv");
+            std::fs::write(&path, csv).map_err(|e| crate::error::Error::io(&path, e))?;
         }
     }
     Ok(())

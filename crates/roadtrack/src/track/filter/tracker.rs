@@ -155,6 +155,16 @@ impl FilterTracker {
         }
     }
 
+    /// [`super::phd::PhdTracker::detected_labels`] of the last frame (empty for the PF or
+    /// before the first step); for diagnostics in tests.
+    #[cfg(test)]
+    pub(super) fn phd_detected_labels(&self) -> std::collections::BTreeSet<u32> {
+        match self.runner.as_ref().map(|r| &r.filter) {
+            Some(Filter::Phd(t)) => t.detected_labels().clone(),
+            _ => std::collections::BTreeSet::new(),
+        }
+    }
+
     /// Makes the runner from the pending frames and tracks them.
     fn start(&mut self) -> Result<Vec<FramePoints>> {
         let runner = Runner::new(

@@ -57,6 +57,9 @@ pub struct PhdTracker {
     /// Labels written at a detection's centre this frame
     /// ([`DetectionModel::write_detection_centre`]).
     written: BTreeMap<u32, Point>,
+    /// Labels whose most probable association this frame was a detection (exclusive
+    /// labels only; empty otherwise).
+    detected: std::collections::BTreeSet<u32>,
 }
 
 impl std::fmt::Debug for PhdTracker {
@@ -89,6 +92,7 @@ impl PhdTracker {
             grid_births: true,
             label_size: BTreeMap::new(),
             written: BTreeMap::new(),
+            detected: std::collections::BTreeSet::new(),
         })
     }
 
@@ -124,6 +128,13 @@ impl PhdTracker {
     /// The filter state (after the first step).
     pub fn filter(&self) -> Option<&LabelledPhd> {
         self.filter.as_ref()
+    }
+
+    /// The labels whose most probable association in the last detection step was one of
+    /// the frame's detections rather than a miss (exclusive labels; empty with the other
+    /// label updates and before the first step).
+    pub fn detected_labels(&self) -> &std::collections::BTreeSet<u32> {
+        &self.detected
     }
 
     /// The expected number of objects (sum of weights); 0 before the first step.
@@ -270,12 +281,14 @@ impl PhdTracker {
                 &label_pd,
             );
             self.written.clear();
+            self.detected = best.keys().copied().collect();
             if model.write_detection_centre {
                 self.written
                     .extend(best.into_iter().map(|(l, j)| (l, measurements[j].pos)));
             }
         } else {
             self.written.clear();
+            self.detected.clear();
             filter.update_detections(
                 measurements,
                 model.detection_prob,
