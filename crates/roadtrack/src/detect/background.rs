@@ -188,6 +188,28 @@ impl BackgroundDetector {
                     .cut(&mask, gap as f32, self.config.regions.age_min_piece_px)
             })
             .flatten();
+        let mut cut = cut;
+        if let Some(pieces) = cut.as_mut() {
+            // Choice: the ghost test again on the age cut's pieces. A ghost beside a vehicle
+            // that queued there later is one region with it in the cleaned mask, and the
+            // vehicle's edges on that region's outline pass the test; cut at the age jump,
+            // the ghost is a piece of its own (docs/DETECTION.md "Ghosts").
+            let before = pieces.clone();
+            if super::ghosts::suppress(
+                &mut self.model,
+                pieces,
+                &frame.image,
+                frame.time_s,
+                self.extract.min_area_px,
+            ) > 0
+            {
+                for ((m, b), a) in mask.iter_mut().zip(before.iter()).zip(pieces.iter()) {
+                    if *b != 0 && *a == 0 {
+                        *m = 0;
+                    }
+                }
+            }
+        }
         let mut regions = extract_regions_split(
             cut.as_ref().unwrap_or(&mask),
             &frame.image,

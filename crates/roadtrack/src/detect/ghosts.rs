@@ -258,6 +258,56 @@ mod tests {
         Ok(())
     }
 
+    /// A ghost joined by a vehicle that stops beside it is one region of the cleaned mask
+    /// whose outline shows the vehicle's edges, so the ghost test passes it. The age cut
+    /// parts the two (the vehicle's pixels are younger), and the test on the cut's pieces
+    /// drops the ghost; the vehicle stays. Without the cut the ghost stays, joined to it.
+    #[test]
+    fn a_ghost_beside_a_younger_vehicle_is_dropped_once_the_age_cut_parts_them() -> Result<()> {
+        let run = |age_gap_s: f64| -> Result<Vec<Vec<BBox>>> {
+            let mut with_car = RgbImage::from_pixel(100, 40, Rgb(ROAD));
+            car(&mut with_car, 10, 10);
+            let boot = vec![with_car.clone(), with_car.clone(), with_car];
+            let mut cfg = BackgroundDetectorConfig::default();
+            cfg.regions.age_gap_s = age_gap_s;
+            let mut det = BackgroundDetector::new(cfg, &boot)?;
+            (1..=40u32)
+                .map(|i| {
+                    // The background's car has left (a ghost from frame 1); another car
+                    // stops touching the ghost's right side at frame 4, before the ghost
+                    // has been still for `ghost_still_s`.
+                    let mut img = RgbImage::from_pixel(100, 40, Rgb(ROAD));
+                    if i >= 4 {
+                        car(&mut img, 30, 10);
+                    }
+                    let f = Frame {
+                        index: i,
+                        time_s: f64::from(i - 1) / 10.0,
+                        image: img,
+                    };
+                    Ok(det.detect(&f)?.iter().filter_map(|d| d.bbox()).collect())
+                })
+                .collect()
+        };
+        let near = |boxes: &[BBox], x: f64| {
+            boxes
+                .iter()
+                .any(|b| b.iou(&BBox::new(x, 10.0, 20.0, 12.0)) >= 0.6)
+        };
+        let cut = run(0.2)?;
+        let uncut = run(0.0)?;
+        for frame in 20..=40 {
+            let (c, u) = (&cut[frame - 1], &uncut[frame - 1]);
+            assert!(near(c, 30.0), "car kept, frame {frame}: {c:?}");
+            assert!(!near(c, 10.0), "ghost dropped, frame {frame}: {c:?}");
+            assert!(
+                u.iter().any(|b| b.left <= 11.0 && b.left + b.width >= 49.0),
+                "without the cut the ghost stays, joined to the car, frame {frame}: {u:?}"
+            );
+        }
+        Ok(())
+    }
+
     #[test]
     fn ghost_settings_out_of_range_are_refused_by_name() {
         for (ratio, still, field) in [
