@@ -90,6 +90,46 @@ fn split_frame(
     parts
 }
 
+/// The scene of an `RT_SCENES` name: the crossing, the intersection or the road of the
+/// count experiments (crossing by default).
+fn scene_of(name: &str) -> (SceneKind, ViewKind) {
+    match name {
+        "road" => (SceneKind::Road, ViewKind::Aerial),
+        "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
+        _ => (SceneKind::Crossing, ViewKind::Oblique),
+    }
+}
+
+/// Runs the detection PHD of `cfg` over `frames` frames of the scene `name` at `seed` on
+/// the simulator's detections, calling `per_step` after each step.
+fn run_phd(
+    name: &str,
+    frames: u32,
+    seed: u64,
+    cfg: &FilterTrackConfig,
+    mut per_step: impl FnMut(&FilterTracker, &roadtrack_sim::SimStep) -> Result<()>,
+) -> Result<()> {
+    let (scene, view) = scene_of(name);
+    let sim = SimConfig {
+        scene,
+        view,
+        frames,
+        ..Default::default()
+    };
+    let mut tracker = FilterTracker::new(FilterMethod::Phd, cfg, seed, None)?;
+    tracker.record_counts();
+    for step in Simulation::new(&sim, seed)? {
+        let step = step?;
+        let d = FrameDetections {
+            detections: step.detections.clone(),
+            foreground: None,
+        };
+        tracker.step(&step.frame, &d)?;
+        per_step(&tracker, &step)?;
+    }
+    Ok(())
+}
+
 /// Count error of the detection PHD split per frame into [`PARTS`], seeds 1–3, 300 frames.
 /// Run with `cargo test -p roadtrack --lib count_error_split_experiment -- --ignored
 /// --nocapture` (env `RT_SCENES=crossing,intersection,road` picks scenes, `RT_CONFIG` a
@@ -103,11 +143,6 @@ fn count_error_split_experiment() -> Result<()> {
         .and_then(|v| v.parse().ok())
         .unwrap_or(300);
     for name in scenes.split(',') {
-        let (scene, view) = match name {
-            "road" => (SceneKind::Road, ViewKind::Aerial),
-            "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
-            _ => (SceneKind::Crossing, ViewKind::Oblique),
-        };
         let cfg = match std::env::var("RT_CONFIG") {
             Ok(path) => FilterTrackConfig::from_toml_file(std::path::Path::new(&path))?,
             Err(_) => FilterTrackConfig::default(),
@@ -116,22 +151,8 @@ fn count_error_split_experiment() -> Result<()> {
         let mut abs_without = [0.0; 9];
         let (mut mae, mut n) = (0.0, 0.0);
         for seed in 1..=3u64 {
-            let sim = SimConfig {
-                scene,
-                view,
-                frames,
-                ..Default::default()
-            };
-            let mut tracker = FilterTracker::new(FilterMethod::Phd, &cfg, seed, None)?;
-            tracker.record_counts();
             let mut first_seen: std::collections::BTreeMap<u64, u32> = Default::default();
-            for step in Simulation::new(&sim, seed)? {
-                let step = step?;
-                let d = FrameDetections {
-                    detections: step.detections.clone(),
-                    foreground: None,
-                };
-                tracker.step(&step.frame, &d)?;
+            run_phd(name, frames, seed, &cfg, |tracker, step| {
                 let total = tracker.counts().last().map_or(0.0, |c| c.expected);
                 let labels: Vec<(Point, f64)> = tracker
                     .phd_labels()
@@ -176,7 +197,8 @@ fn count_error_split_experiment() -> Result<()> {
                     sums[k] += parts[k];
                     abs_without[k] += (err - parts[k]).abs();
                 }
-            }
+                Ok(())
+            })?;
         }
         println!("{name}: count MAE {:.3} over {n} frames", mae / n);
         for k in 0..9 {
@@ -212,32 +234,14 @@ fn count_after_miss_probe() -> Result<()> {
     let scenes = std::env::var("RT_SCENES").unwrap_or_else(|_| "crossing".to_owned());
     let seeds = std::env::var("RT_SEEDS").unwrap_or_else(|_| "1,2,3".to_owned());
     for name in scenes.split(',') {
-        let (scene, view) = match name {
-            "road" => (SceneKind::Road, ViewKind::Aerial),
-            "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
-            _ => (SceneKind::Crossing, ViewKind::Oblique),
-        };
         for seed in seeds.split(',') {
             let seed: u64 = seed
                 .trim()
                 .parse()
                 .map_err(|_| crate::error::Error::Invalid(format!("RT_SEEDS: {seed}")))?;
             let mut csv = String::from("frame,label,w,misses,on,true_count\n");
-            let sim = SimConfig {
-                scene,
-                view,
-                frames: 300,
-                ..Default::default()
-            };
-            let mut tracker = FilterTracker::new(FilterMethod::Phd, &cfg, seed, None)?;
             let mut misses: BTreeMap<u32, u32> = BTreeMap::new();
-            for step in Simulation::new(&sim, seed)? {
-                let step = step?;
-                let d = FrameDetections {
-                    detections: step.detections.clone(),
-                    foreground: None,
-                };
-                tracker.step(&step.frame, &d)?;
+            run_phd(name, 300, seed, &cfg, |tracker, step| {
                 let labels = tracker.phd_labels();
                 let detected = tracker.phd_detected_labels();
                 misses = labels
@@ -275,7 +279,8 @@ fn count_after_miss_probe() -> Result<()> {
                 if labels.is_empty() {
                     let _ = writeln!(csv, "{f},0,0,0,E,{seen}");
                 }
-            }
+                Ok(())
+            })?;
             let path = format!("{out_dir}/{name}_{seed}.csv");
             std::fs::write(&path, csv).map_err(|e| crate::error::Error::io(&path, e))?;
         }
