@@ -199,20 +199,31 @@ mod tests {
         ];
         let mut cfg = BackgroundDetectorConfig::default();
         cfg.background.ghost_edge_ratio = ghost_edge_ratio;
-        let mut det = BackgroundDetector::new(cfg, &boot)?;
-        (1..=80u32)
+        // The car is away for frames 1–40 and parks where it was from 41 on; a second car
+        // stands at (60, 14) from the first frame to the last.
+        road_boxes(BackgroundDetector::new(cfg, &boot)?, 80, |i, img| {
+            if i > 40 {
+                car(img, 10, 10);
+            }
+            car(img, 60, 14);
+        })
+    }
+
+    /// The detector's boxes on frames 1..=n at 10 frames/s: the road with what `draw(i,
+    /// frame)` puts on it.
+    fn road_boxes(
+        mut det: BackgroundDetector,
+        n: u32,
+        draw: impl Fn(u32, &mut RgbImage),
+    ) -> Result<Vec<Vec<BBox>>> {
+        (1..=n)
             .map(|i| {
-                // The car is away for frames 1–40 and parks where it was from 41 on; a
-                // second car stands at (60, 14) from the first frame to the last.
-                let mut img = RgbImage::from_pixel(100, 40, Rgb(ROAD));
-                if i > 40 {
-                    car(&mut img, 10, 10);
-                }
-                car(&mut img, 60, 14);
+                let mut image = RgbImage::from_pixel(100, 40, Rgb(ROAD));
+                draw(i, &mut image);
                 let f = Frame {
                     index: i,
                     time_s: f64::from(i - 1) / 10.0,
-                    image: img,
+                    image,
                 };
                 Ok(det.detect(&f)?.iter().filter_map(|d| d.bbox()).collect())
             })
@@ -270,24 +281,14 @@ mod tests {
             let boot = vec![with_car.clone(), with_car.clone(), with_car];
             let mut cfg = BackgroundDetectorConfig::default();
             cfg.regions.age_gap_s = age_gap_s;
-            let mut det = BackgroundDetector::new(cfg, &boot)?;
-            (1..=40u32)
-                .map(|i| {
-                    // The background's car has left (a ghost from frame 1); another car
-                    // stops touching the ghost's right side at frame 4, before the ghost
-                    // has been still for `ghost_still_s`.
-                    let mut img = RgbImage::from_pixel(100, 40, Rgb(ROAD));
-                    if i >= 4 {
-                        car(&mut img, 30, 10);
-                    }
-                    let f = Frame {
-                        index: i,
-                        time_s: f64::from(i - 1) / 10.0,
-                        image: img,
-                    };
-                    Ok(det.detect(&f)?.iter().filter_map(|d| d.bbox()).collect())
-                })
-                .collect()
+            // The background's car has left (a ghost from frame 1); another car stops
+            // touching the ghost's right side at frame 4, before the ghost has been still
+            // for `ghost_still_s`.
+            road_boxes(BackgroundDetector::new(cfg, &boot)?, 40, |i, img| {
+                if i >= 4 {
+                    car(img, 30, 10);
+                }
+            })
         };
         let near = |boxes: &[BBox], x: f64| {
             boxes
