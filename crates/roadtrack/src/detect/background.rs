@@ -180,7 +180,7 @@ impl BackgroundDetector {
         self.model
             .update_held(frame.index, &frame.image, &mask, frame.time_s)?;
         let gap = self.config.regions.age_gap_s;
-        let cut = (gap > 0.0)
+        let mut cut = (gap > 0.0)
             .then(|| {
                 self.ages
                     .update(&mask, frame.time_s, self.config.regions.age_grace_s);
@@ -188,7 +188,6 @@ impl BackgroundDetector {
                     .cut(&mask, gap as f32, self.config.regions.age_min_piece_px)
             })
             .flatten();
-        let mut cut = cut;
         if let Some(pieces) = cut.as_mut() {
             // Choice: the ghost test again on the age cut's pieces. A ghost beside a vehicle
             // that queued there later is one region with it in the cleaned mask, and the
