@@ -173,6 +173,7 @@ impl BackgroundDetector {
         super::ghosts::suppress(
             &mut self.model,
             &mut mask,
+            None,
             &frame.image,
             frame.time_s,
             self.extract.min_area_px,
@@ -192,11 +193,14 @@ impl BackgroundDetector {
             // Choice: the ghost test again on the age cut's pieces. A ghost beside a vehicle
             // that queued there later is one region with it in the cleaned mask, and the
             // vehicle's edges on that region's outline pass the test; cut at the age jump,
-            // the ghost is a piece of its own (docs/DETECTION.md "Ghosts").
+            // the ghost is a piece of its own (docs/DETECTION.md "Ghosts"). Only a piece's
+            // outline against the background counts: a cut through a vehicle that moved up
+            // in a queue (its older part a piece) shows no edge in the frame.
             let before = pieces.clone();
             if super::ghosts::suppress(
                 &mut self.model,
                 pieces,
+                Some(&mask),
                 &frame.image,
                 frame.time_s,
                 self.extract.min_area_px,

@@ -41,10 +41,14 @@ const STILL_SHARE: f64 = 0.9;
 
 /// Finds the ghosts among the regions of `mask` (the cleaned foreground of `image`, before
 /// the model learns `image`) at time `time_s`, clears them from `mask` and absorbs them
-/// into `model`. Regions under `min_area_px` are left alone. Returns how many were found.
+/// into `model`. Regions under `min_area_px` are left alone. A region's outline is its
+/// pixels next to a background pixel of `outline_of` (`None`: of `mask`): given the cleaned
+/// mask when `mask` holds the age cut's pieces, a piece's outline leaves out the cut lines,
+/// which may run through an object. Returns how many were found.
 pub fn suppress(
     model: &mut BackgroundModel,
     mask: &mut GrayImage,
+    outline_of: Option<&GrayImage>,
     image: &RgbImage,
     time_s: f64,
     min_area_px: u32,
@@ -86,7 +90,7 @@ pub fn suppress(
         if (n_still as f64) < STILL_SHARE * n as f64 {
             continue;
         }
-        let (e_frame, e_background) = outline_edges(mask, &runs, |x, y| {
+        let (e_frame, e_background) = outline_edges(outline_of.unwrap_or(mask), &runs, |x, y| {
             let i = 3 * (y as usize * w as usize + x as usize);
             let p = &image.as_raw()[i..i + 3];
             let m = &model.mean()[i..i + 3];
@@ -95,7 +99,10 @@ pub fn suppress(
                 m[0] + m[1] + m[2],
             )
         });
-        if e_frame < ratio * e_background {
+        if e_frame < ratio * e_background
+            && outline_of
+                .is_none_or(|around| looks_like_its_surroundings(around, &runs, image, model))
+        {
             ghosts.push(runs);
         }
     }
@@ -107,6 +114,54 @@ pub fn suppress(
         model.absorb(image, runs);
     }
     ghosts.len()
+}
+
+/// Largest per-channel difference (grey levels) between the frame's mean colour over a
+/// piece and the background's mean colour just around it for the piece to pass as a
+/// ghost ([`looks_like_its_surroundings`]).
+// Choice: 20 grey levels: the background's noise floor is 8 (`min_sigma`), and the road
+// under a ghost and beside it differ by markings; a vehicle differs from the road by more.
+const SURROUNDINGS_TOLERANCE: f32 = 20.0;
+
+/// Whether the frame over a piece of the age cut (`runs`) shows what the background shows
+/// around it (its 4-neighbours that are background in `around`, the cleaned mask): a
+/// ghost shows the road it stands on, a vehicle its own colours. No neighbour: `false`.
+fn looks_like_its_surroundings(
+    around: &GrayImage,
+    runs: &[(u32, u32, u32)],
+    image: &RgbImage,
+    model: &BackgroundModel,
+) -> bool {
+    let (w, h) = around.dimensions();
+    let (px, mean) = (image.as_raw(), model.mean());
+    let (mut inside, mut n_in) = ([0.0f64; 3], 0.0f64);
+    let (mut ring, mut n_ring) = ([0.0f64; 3], 0.0f64);
+    for &(y, a, b) in runs {
+        for x in a..b {
+            let i = 3 * (y as usize * w as usize + x as usize);
+            for c in 0..3 {
+                inside[c] += f64::from(px[i + c]);
+            }
+            n_in += 1.0;
+            for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                let (nx, ny) = (i64::from(x) + dx, i64::from(y) + dy);
+                if nx < 0 || ny < 0 || nx >= i64::from(w) || ny >= i64::from(h) {
+                    continue;
+                }
+                let (nx, ny) = (nx as u32, ny as u32);
+                if around.get_pixel(nx, ny)[0] == 0 {
+                    let j = 3 * (ny as usize * w as usize + nx as usize);
+                    for c in 0..3 {
+                        ring[c] += f64::from(mean[j + c]);
+                    }
+                    n_ring += 1.0;
+                }
+            }
+        }
+    }
+    n_ring > 0.0
+        && (0..3)
+            .all(|c| ((inside[c] / n_in - ring[c] / n_ring).abs() as f32) < SURROUNDINGS_TOLERANCE)
 }
 
 /// Sums over the outline pixels of a region (`runs`, pixels of `mask`) of the largest
@@ -306,6 +361,50 @@ mod tests {
                 "without the cut the ghost stays, joined to the car, frame {frame}: {u:?}"
             );
         }
+        Ok(())
+    }
+
+    /// A piece passes as a ghost only where the frame over it shows the colour the
+    /// background has around it: road over road, not a red car; without a background
+    /// neighbour, never.
+    #[test]
+    fn a_piece_is_a_ghost_only_where_it_looks_like_the_road_around_it() -> Result<()> {
+        let road = RgbImage::from_pixel(40, 20, Rgb(ROAD));
+        let model = BackgroundDetector::new(
+            BackgroundDetectorConfig::default(),
+            std::slice::from_ref(&road),
+        )?;
+        let model = model.background();
+        // The piece: x 10..20 on rows 5..10; the cleaned mask holds it and x 20..30.
+        let runs: Vec<(u32, u32, u32)> = (5..10).map(|y| (y, 10, 20)).collect();
+        let mut around = image::GrayImage::new(40, 20);
+        for y in 5..10 {
+            for x in 10..30 {
+                around.put_pixel(x, y, image::Luma([255]));
+            }
+        }
+        let mut frame = road.clone();
+        for &(y, a, b) in &runs {
+            for x in a..b {
+                frame.put_pixel(x, y, Rgb([ROAD[0] + 10, ROAD[1] + 5, ROAD[2]]));
+            }
+        }
+        assert!(super::looks_like_its_surroundings(
+            &around, &runs, &frame, model
+        ));
+        for &(y, a, b) in &runs {
+            for x in a..b {
+                frame.put_pixel(x, y, Rgb([220, 60, 50]));
+            }
+        }
+        assert!(!super::looks_like_its_surroundings(
+            &around, &runs, &frame, model
+        ));
+        // Every neighbour in the mask: nothing to compare with.
+        let full = image::GrayImage::from_pixel(40, 20, image::Luma([255]));
+        assert!(!super::looks_like_its_surroundings(
+            &full, &runs, &road, model
+        ));
         Ok(())
     }
 
