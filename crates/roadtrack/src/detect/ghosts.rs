@@ -76,6 +76,10 @@ pub fn suppress(
         if n < u64::from(min_area_px) {
             continue;
         }
+        // A piece the cut left whole is a region the first test has seen: skip it.
+        if outline_of.is_some_and(|around| !touches_a_cut(around, mask, &runs)) {
+            continue;
+        }
         let held = model.held_since();
         let n_still: u64 = runs
             .iter()
@@ -114,6 +118,25 @@ pub fn suppress(
         model.absorb(image, runs);
     }
     ghosts.len()
+}
+
+/// Whether a piece of the age cut (`runs`, pixels of `pieces`) borders a pixel that the cut
+/// removed (in `around`, the cleaned mask, but not in `pieces`).
+fn touches_a_cut(around: &GrayImage, pieces: &GrayImage, runs: &[(u32, u32, u32)]) -> bool {
+    let (w, h) = around.dimensions();
+    let cut = |x: i64, y: i64| {
+        x >= 0
+            && y >= 0
+            && x < i64::from(w)
+            && y < i64::from(h)
+            && around.get_pixel(x as u32, y as u32)[0] != 0
+            && pieces.get_pixel(x as u32, y as u32)[0] == 0
+    };
+    runs.iter().any(|&(y, a, b)| {
+        let y = i64::from(y);
+        (i64::from(a)..i64::from(b))
+            .any(|x| cut(x - 1, y) || cut(x + 1, y) || cut(x, y - 1) || cut(x, y + 1))
+    })
 }
 
 /// Largest per-channel difference (grey levels) between the frame's mean colour over a
