@@ -196,21 +196,16 @@ impl BackgroundDetector {
             // the ghost is a piece of its own (docs/DETECTION.md "Ghosts"). Only a piece's
             // outline against the background counts: a cut through a vehicle that moved up
             // in a queue (its older part a piece) shows no edge in the frame.
-            let before = pieces.clone();
-            if super::ghosts::suppress(
+            let ghosts = super::ghosts::suppress(
                 &mut self.model,
                 pieces,
                 Some(&mask),
                 &frame.image,
                 frame.time_s,
                 self.extract.min_area_px,
-            ) > 0
-            {
-                for ((m, b), a) in mask.iter_mut().zip(before.iter()).zip(pieces.iter()) {
-                    if *b != 0 && *a == 0 {
-                        *m = 0;
-                    }
-                }
+            );
+            for runs in &ghosts {
+                super::ghosts::clear_runs(&mut mask, runs);
             }
         }
         let mut regions = extract_regions_split(

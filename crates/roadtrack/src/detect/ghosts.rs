@@ -44,7 +44,7 @@ const STILL_SHARE: f64 = 0.9;
 /// into `model`. Regions under `min_area_px` are left alone. A region's outline is its
 /// pixels next to a background pixel of `outline_of` (`None`: of `mask`): given the cleaned
 /// mask when `mask` holds the age cut's pieces, a piece's outline leaves out the cut lines,
-/// which may run through an object. Returns how many were found.
+/// which may run through an object. Returns the ghosts' pixel runs.
 pub fn suppress(
     model: &mut BackgroundModel,
     mask: &mut GrayImage,
@@ -52,11 +52,11 @@ pub fn suppress(
     image: &RgbImage,
     time_s: f64,
     min_area_px: u32,
-) -> usize {
+) -> Vec<Vec<(u32, u32, u32)>> {
     let cfg = model.config();
     let (ratio, still_s) = (cfg.ghost_edge_ratio, cfg.ghost_still_s);
     if ratio <= 0.0 {
-        return 0;
+        return Vec::new();
     }
     let w = mask.width();
     let t = time_s as f32;
@@ -68,7 +68,7 @@ pub fn suppress(
         .zip(model.held_since())
         .any(|(&m, &since)| m != 0 && still(since));
     if !any_still {
-        return 0;
+        return Vec::new();
     }
     let mut ghosts = Vec::new();
     for runs in component_runs(mask) {
@@ -111,32 +111,43 @@ pub fn suppress(
         }
     }
     for runs in &ghosts {
-        for &(y, a, b) in runs {
-            let row = (y * w) as usize;
-            mask.as_mut()[row + a as usize..row + b as usize].fill(0);
-        }
+        clear_runs(mask, runs);
         model.absorb(image, runs);
     }
-    ghosts.len()
+    ghosts
+}
+
+/// Sets the pixels of `runs` (row, first column, end column) to 0 in `mask`.
+pub fn clear_runs(mask: &mut GrayImage, runs: &[(u32, u32, u32)]) {
+    let w = mask.width();
+    for &(y, a, b) in runs {
+        let row = (y * w) as usize;
+        mask.as_mut()[row + a as usize..row + b as usize].fill(0);
+    }
+}
+
+/// The 4-neighbours inside a `w × h` frame of a region's pixels (`runs`), in pixel order
+/// and with repeats (a pixel beside two of the region's is given twice).
+fn neighbours(runs: &[(u32, u32, u32)], w: u32, h: u32) -> impl Iterator<Item = (u32, u32)> + '_ {
+    runs.iter().flat_map(move |&(y, a, b)| {
+        (a..b).flat_map(move |x| {
+            [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                .into_iter()
+                .filter_map(move |(dx, dy)| {
+                    let (nx, ny) = (i64::from(x) + dx, i64::from(y) + dy);
+                    (nx >= 0 && ny >= 0 && nx < i64::from(w) && ny < i64::from(h))
+                        .then_some((nx as u32, ny as u32))
+                })
+        })
+    })
 }
 
 /// Whether a piece of the age cut (`runs`, pixels of `pieces`) borders a pixel that the cut
 /// removed (in `around`, the cleaned mask, but not in `pieces`).
 fn touches_a_cut(around: &GrayImage, pieces: &GrayImage, runs: &[(u32, u32, u32)]) -> bool {
     let (w, h) = around.dimensions();
-    let cut = |x: i64, y: i64| {
-        x >= 0
-            && y >= 0
-            && x < i64::from(w)
-            && y < i64::from(h)
-            && around.get_pixel(x as u32, y as u32)[0] != 0
-            && pieces.get_pixel(x as u32, y as u32)[0] == 0
-    };
-    runs.iter().any(|&(y, a, b)| {
-        let y = i64::from(y);
-        (i64::from(a)..i64::from(b))
-            .any(|x| cut(x - 1, y) || cut(x + 1, y) || cut(x, y - 1) || cut(x, y + 1))
-    })
+    neighbours(runs, w, h)
+        .any(|(x, y)| around.get_pixel(x, y)[0] != 0 && pieces.get_pixel(x, y)[0] == 0)
 }
 
 /// Largest per-channel difference (grey levels) between the frame's mean colour over a
@@ -157,30 +168,22 @@ fn looks_like_its_surroundings(
 ) -> bool {
     let (w, h) = around.dimensions();
     let (px, mean) = (image.as_raw(), model.mean());
+    let at = |x: u32, y: u32| 3 * (y as usize * w as usize + x as usize);
     let (mut inside, mut n_in) = ([0.0f64; 3], 0.0f64);
-    let (mut ring, mut n_ring) = ([0.0f64; 3], 0.0f64);
     for &(y, a, b) in runs {
         for x in a..b {
-            let i = 3 * (y as usize * w as usize + x as usize);
             for c in 0..3 {
-                inside[c] += f64::from(px[i + c]);
+                inside[c] += f64::from(px[at(x, y) + c]);
             }
             n_in += 1.0;
-            for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                let (nx, ny) = (i64::from(x) + dx, i64::from(y) + dy);
-                if nx < 0 || ny < 0 || nx >= i64::from(w) || ny >= i64::from(h) {
-                    continue;
-                }
-                let (nx, ny) = (nx as u32, ny as u32);
-                if around.get_pixel(nx, ny)[0] == 0 {
-                    let j = 3 * (ny as usize * w as usize + nx as usize);
-                    for c in 0..3 {
-                        ring[c] += f64::from(mean[j + c]);
-                    }
-                    n_ring += 1.0;
-                }
-            }
         }
+    }
+    let (mut ring, mut n_ring) = ([0.0f64; 3], 0.0f64);
+    for (x, y) in neighbours(runs, w, h).filter(|&(x, y)| around.get_pixel(x, y)[0] == 0) {
+        for c in 0..3 {
+            ring[c] += f64::from(mean[at(x, y) + c]);
+        }
+        n_ring += 1.0;
     }
     n_ring > 0.0
         && (0..3)
