@@ -18,7 +18,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from detection_compare import (INTERSECTION_CONFIG, PEDESTRIANS_CONFIG,  # noqa: E402
-                               mog2, read_gt, read_ours, read_stopped, score)
+                               mog2, read_gt, read_ours, read_stopped, score, sequence)
 
 
 def main():
@@ -40,15 +40,12 @@ def main():
     print(f"R all / P; binaries: {names}\n")
     print("| seed | scene | MOG2 | " + " | ".join(r for r, _ in rows) + " |")
     print("| --- | --- | --- | " + " | ".join("---" for _ in rows) + " |")
-    lost = {r: 0 for r, _ in [*rows]}
+    lost = {r: 0 for r, _ in rows}
     for seed in a.seeds.split(","):
         for scene in ("road", "intersection", "crossing"):
             for view in ("aerial", "oblique"):
-                seq = f"{a.work}/{scene}_{view}_{seed}"
-                if not os.path.isdir(seq):
-                    subprocess.run([binaries[0][1], "-q", "simulate", "--scene", scene,
-                                    "--view", view, "--frames", str(a.frames), "--seed", seed,
-                                    "-o", seq], check=True)
+                seq = sequence(argparse.Namespace(roadtrack=binaries[0][1], work=a.work,
+                                                  seed=int(seed), frames=a.frames), scene, view)
                 gt, stopped = read_gt(seq), read_stopped(seq)
                 m_rec, m_prec, _ = score(gt, mog2(seq, a.frames), stopped, a.frames)
                 cells = [f"{m_rec['all']:.2f} / {m_prec:.2f}"]
