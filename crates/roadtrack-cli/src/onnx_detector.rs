@@ -112,6 +112,10 @@ pub struct OnnxArgs {
     /// pedestrians); by default it is dropped as a part of that object.
     #[arg(long)]
     pub keep_nested: bool,
+    /// --detector cnn: keep a second box on a small vehicle (8–24 px, its centre inside the
+    /// better box, along it); by default it is dropped as a second peak of that vehicle.
+    #[arg(long)]
+    pub keep_second_peaks: bool,
     /// --detector cnn: run the network on the frame only, not also on its mirror image
     /// (by default the two are averaged: better boxes for twice the compute).
     #[arg(long)]
@@ -163,6 +167,7 @@ impl OnnxArgs {
             ("--zoom-small", self.zoom_small.is_some()),
             ("--zoom-mode", self.zoom_mode.is_some()),
             ("--keep-nested", self.keep_nested),
+            ("--keep-second-peaks", self.keep_second_peaks),
             ("--no-flip", self.no_flip),
             ("--flip-vertical", self.flip_vertical),
             ("--no-box-gain", self.no_box_gain),
@@ -184,6 +189,7 @@ impl OnnxArgs {
                         | "--zoom-small"
                         | "--zoom-mode"
                         | "--keep-nested"
+                        | "--keep-second-peaks"
                         | "--no-flip"
                         | "--flip-vertical"
                         | "--no-box-gain"
@@ -239,6 +245,9 @@ impl OnnxArgs {
         config.flip = !self.no_flip;
         config.flip_vertical = self.flip_vertical;
         config.box_gain = !self.no_box_gain;
+        if self.keep_second_peaks {
+            config.second_peak_max_side = 0.0;
+        }
         if self.keep_nested || !nested_in_detector {
             config.nested = roadtrack::detect::nested::NestedConfig::OFF;
         }
@@ -300,6 +309,7 @@ impl OnnxArgs {
                 ("--zoom-small", self.zoom_small.is_some()),
                 ("--zoom-mode", self.zoom_mode.is_some()),
                 ("--keep-nested", self.keep_nested),
+                ("--keep-second-peaks", self.keep_second_peaks),
                 ("--no-flip", self.no_flip),
                 ("--flip-vertical", self.flip_vertical),
                 ("--no-box-gain", self.no_box_gain),

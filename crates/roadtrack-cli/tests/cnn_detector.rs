@@ -74,6 +74,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         &["--detector", "background", "--keep-nested"][..],
         &["--detector", "onnx", "--model", "m.onnx", "--no-flip"][..],
         &["--detector", "background", "--flip-vertical"][..],
+        &["--detector", "background", "--keep-second-peaks"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -91,6 +92,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             "--no-flip",
             "--flip-vertical",
             "--zoom-mode",
+            "--keep-second-peaks",
         ]
         .into_iter()
         .find(|f| args.contains(f))
@@ -213,10 +215,17 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     };
     assert!(warned("16"));
     assert!(!warned("12"));
-    // Nested boxes kept: an added small box may hold a default one.
-    let plain = run(&["--keep-nested"], "plain_all.csv");
+    // Nested boxes and second peaks kept: an added small box may hold a default one.
+    let plain = run(&["--keep-nested", "--keep-second-peaks"], "plain_all.csv");
     let zoomed = run(
-        &["--zoom-small", "12", "--zoom-mode", "add", "--keep-nested"],
+        &[
+            "--zoom-small",
+            "12",
+            "--zoom-mode",
+            "add",
+            "--keep-nested",
+            "--keep-second-peaks",
+        ],
         "zoomed.csv",
     );
     // Every default box is in the zoomed output, which has more.
@@ -237,7 +246,10 @@ fn zoom_adds_to_the_default_boxes_and_a_calibration_limits_it() {
     // As a level: the default's boxes of 12 px or more stay, every box the add mode added
     // is there too, and no default box under 12 px is left (each small box is the
     // enlarged frame's).
-    let level = boxes(&run(&["--zoom-small", "12", "--keep-nested"], "level.csv"));
+    let level = boxes(&run(
+        &["--zoom-small", "12", "--keep-nested", "--keep-second-peaks"],
+        "level.csv",
+    ));
     let small = |b: &String| {
         let c: Vec<f64> = b
             .split(',')
@@ -357,7 +369,11 @@ fn nested_boxes_are_dropped_unless_kept() {
         let (w, h) = d.size_px.expect("a box");
         roadtrack::geometry::BBox::from_centre(d.pos_px, w, h)
     };
-    for gate in [&[][..], &["--motion-gate", "0.2"][..]] {
+    // Second peaks kept on both sides: that rule runs on what the nested rule leaves.
+    for gate in [
+        &["--keep-second-peaks"][..],
+        &["--keep-second-peaks", "--motion-gate", "0.2"][..],
+    ] {
         let dropped = run(gate, "dropped.csv");
         let kept = run(&[gate, &["--keep-nested"][..]].concat(), "kept.csv");
         let kept_keys: Vec<String> = kept.iter().map(key).collect();
@@ -384,6 +400,61 @@ fn nested_boxes_are_dropped_unless_kept() {
         );
         assert!(kept.len() > dropped.len(), "{gate:?}");
     }
+}
+
+/// Second peaks, on a simulated aerial crossing (cars of 12–16 px): by default no vehicle box
+/// under 24 px has its centre inside a better-scored vehicle box of its frame;
+/// `--keep-second-peaks` gives such boxes back and drops nothing else.
+#[test]
+fn second_peaks_on_small_vehicles_are_dropped_unless_kept() {
+    use roadtrack::detection::Detection;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    let o = bin()
+        .args(["-q", "simulate", "--scene", "crossing", "--view", "aerial"])
+        .args(["--frames", "10", "--seed", "7", "-o"])
+        .arg(&seq)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let run = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        detect_cnn(&seq, &[&["--no-flip"][..], extra].concat(), &out);
+        roadtrack::io::detections::read_detections(&out).expect("read output")
+    };
+    let key = |d: &Detection| format!("{} {:?} {:?} {:?}", d.frame, d.pos_px, d.size_px, d.class);
+    let vehicle = |d: &Detection| d.class.as_ref().is_some_and(|c| c.is_vehicle());
+    let size = |d: &Detection| d.size_px.expect("a box");
+    // The rule grows the better box 1.1 times before the boxes are clipped to the frame;
+    // the test reads clipped boxes, so it takes the box itself.
+    let seconds = |all: &[Detection]| {
+        all.iter()
+            .filter(|d| {
+                vehicle(d)
+                    && size(d).0.max(size(d).1) < 24.0
+                    && all.iter().any(|k| {
+                        let (w, h) = size(k);
+                        k.frame == d.frame
+                            && vehicle(k)
+                            && k.score > d.score
+                            && (d.pos_px.x - k.pos_px.x).abs() <= w / 2.0
+                            && (d.pos_px.y - k.pos_px.y).abs() <= h / 2.0
+                    })
+            })
+            .count()
+    };
+    let dropped = run(&[], "dropped.csv");
+    let kept = run(&["--keep-second-peaks"], "kept.csv");
+    let kept_keys: Vec<String> = kept.iter().map(key).collect();
+    for d in &dropped {
+        assert!(kept_keys.contains(&key(d)), "{d:?} not kept");
+    }
+    assert_eq!(seconds(&dropped), 0);
+    assert!(
+        seconds(&kept) > 0,
+        "no second peaks in the simulated frames"
+    );
+    assert!(kept.len() > dropped.len());
 }
 
 #[cfg(feature = "learn")]

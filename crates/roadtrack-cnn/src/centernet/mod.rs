@@ -29,8 +29,8 @@ pub use detector::{
     CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, ZoomMode, box_factor, default_model_path,
 };
 pub use views::{
-    ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, flip_input,
-    merge_levels, replace_small, score_map_of, shrink, zoom_rows,
+    ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, drop_second_peaks,
+    flip_input, merge_levels, replace_small, score_map_of, shrink, zoom_rows,
 };
 
 use std::path::Path;

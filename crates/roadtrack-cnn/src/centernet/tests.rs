@@ -187,6 +187,118 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     }
 }
 
+#[test]
+fn a_second_peak_on_a_small_vehicle_is_dropped_and_queued_neighbours_are_kept() {
+    let cfg = CenterNetConfig::default();
+    let (car, lorry, moto, ped) = (0, 1, 2, 3);
+    let boxes = vec![
+        cand(100.0, 100.0, 12.0, 5.0, car, 0.6), // a car's second peak, 6 px along: dropped
+        cand(106.0, 100.0, 12.0, 5.0, car, 0.9), // the car's better peak
+        cand(122.0, 100.0, 12.0, 5.0, car, 0.8), // the car queued behind it, 16 px on: kept
+        cand(106.0, 101.0, 3.0, 4.0, ped, 0.5),  // a pedestrian at the car: never tested
+        cand(300.0, 100.0, 20.0, 8.0, lorry, 0.7), // a lorry
+        cand(309.0, 100.0, 10.0, 5.0, moto, 0.65), // another class inside it: dropped
+        cand(500.0, 100.0, 30.0, 12.0, car, 0.5), // 30 px: over 24, never dropped
+        cand(505.0, 100.0, 30.0, 12.0, car, 0.95),
+        cand(700.0, 100.0, 12.0, 8.0, car, 0.9), // a car and, inside its box but across
+        cand(702.0, 103.0, 12.0, 8.0, car, 0.8), // it (2 px along, 3 across), one behind: kept
+        cand(900.0, 100.0, 12.0, 5.0, car, 0.9), // a car and, along it, a box of 6 px:
+        cand(904.0, 100.0, 6.0, 4.0, car, 0.8),  // under 8 px, kept
+    ];
+    let kept = drop_second_peaks(boxes.clone(), &cfg);
+    let keys = |v: &[Candidate]| -> Vec<(f64, f64)> { v.iter().map(|c| (c.cx, c.cy)).collect() };
+    assert_eq!(
+        keys(&kept),
+        vec![
+            (106.0, 100.0),
+            (122.0, 100.0),
+            (106.0, 101.0),
+            (300.0, 100.0),
+            (500.0, 100.0),
+            (505.0, 100.0),
+            (700.0, 100.0),
+            (702.0, 103.0),
+            (900.0, 100.0),
+            (904.0, 100.0),
+        ]
+    );
+    // Each limit keeps a box the rule would otherwise drop.
+    let any_direction = CenterNetConfig {
+        second_peak_along: 0.0,
+        ..cfg.clone()
+    };
+    assert_eq!(
+        drop_second_peaks(boxes.clone(), &any_direction).len(),
+        kept.len() - 1
+    );
+    let no_lower_limit = CenterNetConfig {
+        second_peak_min_side: 0.0,
+        ..cfg.clone()
+    };
+    assert_eq!(
+        drop_second_peaks(boxes.clone(), &no_lower_limit).len(),
+        kept.len() - 1
+    );
+    // The better peak stays whichever comes first in the input.
+    let mut reversed = boxes.clone();
+    reversed.reverse();
+    let mut back = drop_second_peaks(reversed, &cfg);
+    back.reverse();
+    assert_eq!(keys(&back), keys(&kept));
+    // The growth: 6.3 px from a 12 px box's centre is outside it (6) but inside it grown
+    // 1.1 times (6.6).
+    let pair = vec![
+        cand(0.0, 0.0, 12.0, 5.0, car, 0.9),
+        cand(6.3, 0.0, 12.0, 5.0, car, 0.8),
+    ];
+    assert_eq!(drop_second_peaks(pair.clone(), &cfg).len(), 1);
+    let tight = CenterNetConfig {
+        second_peak_grow: 1.0,
+        ..cfg.clone()
+    };
+    assert_eq!(drop_second_peaks(pair.clone(), &tight), pair);
+    // 0 turns the rule off.
+    let off = CenterNetConfig {
+        second_peak_max_side: 0.0,
+        ..cfg.clone()
+    };
+    assert_eq!(drop_second_peaks(boxes.clone(), &off), boxes);
+    use roadtrack::config::Validate;
+    for (field, bad) in [
+        (
+            "second_peak_max_side",
+            CenterNetConfig {
+                second_peak_max_side: f64::NAN,
+                ..cfg.clone()
+            },
+        ),
+        (
+            "second_peak_grow",
+            CenterNetConfig {
+                second_peak_grow: 0.9,
+                ..cfg.clone()
+            },
+        ),
+        (
+            "second_peak_min_side",
+            CenterNetConfig {
+                second_peak_min_side: -1.0,
+                ..cfg.clone()
+            },
+        ),
+        (
+            "second_peak_along",
+            CenterNetConfig {
+                second_peak_along: f64::INFINITY,
+                ..cfg.clone()
+            },
+        ),
+    ] {
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+}
+
 /// A held-out 640 × 480 aerial road render (seed 23): both sides multiples of 32, so the
 /// padding of both pyramid levels does not break the frame's symmetries.
 pub(super) fn held_out_aerial_frame() -> Result<RgbImage> {

@@ -186,6 +186,47 @@ pub fn drop_nested(boxes: Vec<Candidate>, cfg: &CenterNetConfig) -> Vec<Candidat
         .collect()
 }
 
+/// `boxes` without second peaks on small vehicles ([`CenterNetConfig::second_peak_max_side`]):
+/// best score first (ties in input order), a vehicle box (any vehicle class) whose longer
+/// side is in `[second_peak_min_side, second_peak_max_side)` and whose centre lies inside a
+/// vehicle box kept so far, grown `second_peak_grow` times about its centre, at an offset
+/// along that box's longer side at least `second_peak_along` times the offset across it, is
+/// dropped; pedestrians are never tested and test nothing. The order of the rest is kept.
+pub fn drop_second_peaks(boxes: Vec<Candidate>, cfg: &CenterNetConfig) -> Vec<Candidate> {
+    if cfg.second_peak_max_side <= 0.0 {
+        return boxes;
+    }
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
+    order.sort_by(|&a, &b| boxes[b].score.total_cmp(&boxes[a].score).then(a.cmp(&b)));
+    let half = cfg.second_peak_grow / 2.0;
+    let second_of = |c: &Candidate, k: &Candidate| {
+        let (dx, dy) = ((c.cx - k.cx).abs(), (c.cy - k.cy).abs());
+        let (along, across) = if k.w >= k.h { (dx, dy) } else { (dy, dx) };
+        dx <= k.w * half && dy <= k.h * half && along >= cfg.second_peak_along * across
+    };
+    let mut kept: Vec<&Candidate> = Vec::new();
+    let mut drop = vec![false; boxes.len()];
+    for i in order {
+        let c = &boxes[i];
+        if channel_class(c.class) == ObjectClass::Pedestrian {
+            continue;
+        }
+        let side = c.w.max(c.h);
+        if (cfg.second_peak_min_side..cfg.second_peak_max_side).contains(&side)
+            && kept.iter().any(|k| second_of(c, k))
+        {
+            drop[i] = true;
+        } else {
+            kept.push(c);
+        }
+    }
+    boxes
+        .into_iter()
+        .zip(drop)
+        .filter_map(|(c, d)| (!d).then_some(c))
+        .collect()
+}
+
 /// Length of the car the zoom looks for, m.
 // Choice: 4.5 m, a mid-size car: lorries and buses are larger and found without the zoom.
 pub const ZOOM_CAR_LENGTH_M: f64 = 4.5;
