@@ -174,6 +174,42 @@ impl OnnxArgs {
         ]
     }
 
+    /// The learned detector's flags as given, for a report: ` --no-flip --zoom-small 16`, …
+    pub fn cnn_flags(&self) -> String {
+        let valued = [
+            ("--min-score", self.min_score),
+            ("--iou-threshold", self.iou_threshold),
+            ("--pyramid", self.pyramid.map(f64::from)),
+            ("--coarse-min-score", self.coarse_min_score),
+            ("--zoom-small", self.zoom_small),
+        ];
+        let mut out = String::new();
+        for (flag, v) in valued {
+            if let Some(v) = v {
+                out.push_str(&format!(" {flag} {v}"));
+            }
+        }
+        if let Some(mode) = self.zoom_mode {
+            out.push_str(match mode {
+                ZoomModeArg::Level => " --zoom-mode level",
+                ZoomModeArg::Add => " --zoom-mode add",
+            });
+        }
+        for (flag, on) in [
+            ("--keep-nested", self.keep_nested),
+            ("--keep-second-peaks", self.keep_second_peaks),
+            ("--no-flip", self.no_flip),
+            ("--flip-vertical", self.flip_vertical),
+            ("--no-box-gain", self.no_box_gain),
+        ] {
+            if on {
+                out.push(' ');
+                out.push_str(flag);
+            }
+        }
+        out
+    }
+
     /// The given flags that `--detector cnn` does not take (it takes --min-score and
     /// --iou-threshold).
     pub fn given_not_cnn(&self) -> Vec<(&'static str, bool)> {

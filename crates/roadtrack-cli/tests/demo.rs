@@ -103,6 +103,13 @@ fn demo_reports_every_method_best_first_with_pictures_and_counts() {
     let page = demo(&out, &["--frames", "20", "--detector", "background"]);
     assert!(page.contains("`--detector background`"), "{page}");
     assert!(!page.contains("default"), "{page}");
+    // The learned detector's flags apply to the default detector, and the report says so.
+    let out = dir.path().join("demo_kept");
+    let page = demo(&out, &["--frames", "20", "--keep-second-peaks"]);
+    assert!(
+        page.contains("`--detector cnn --keep-second-peaks --no-flip` (the demo's default"),
+        "{page}"
+    );
 }
 
 /// With the sequence's own detections, over long enough for a car to cross the junction:

@@ -41,22 +41,22 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
              det/det.txt",
         ));
     }
-    if !args.detector.is_file() {
-        // Bad detector flags or an unreadable model fail before the simulation, not after.
-        args.detector
-            .spec(&args.output, None, || Ok(Default::default()))?;
-    }
     let given = args.detector.detector.is_some() || args.detector.is_file();
+    let detector = if given {
+        args.detector
+    } else {
+        crate::demo::default_detector(args.detector)
+    };
+    if !detector.is_file() {
+        // Bad detector flags or an unreadable model fail before the simulation, not after.
+        detector.spec(&args.output, None, || Ok(Default::default()))?;
+    }
     let cfg = DemoConfig {
         frames: args.frames,
         fps: args.fps,
         seed: args.seed,
         video: !args.no_video,
-        detector: if given {
-            args.detector
-        } else {
-            crate::demo::default_detector()
-        },
+        detector,
         detector_default: !given,
         ..DemoConfig::default()
     };

@@ -78,22 +78,24 @@ impl Default for DemoConfig {
 
 /// The demo's detector when no `--detector` is given: the learned detector without the
 /// mirror image (`--detector cnn --no-flip`) where roadtrack has it (feature `cnn`) and the
-/// shipped model is there; else each method's own background detector.
+/// shipped model is there, with the learned detector's flags in `given` (`--keep-nested`,
+/// `--zoom-small`, …); else `given` as it is (each method's own background detector, and a
+/// learned-detector flag there is a usage error).
 // Choice: the learned detector, as issue 13 asks of a default (the most accurate that needs
 // no download): on the demo's whole cycle it doubles the best HOTA (0.253 -> 0.466,
 // docs/EXPERIMENTS.md "Demo"). Without the mirror, because with it the demo took 91 s on
 // two cores against the minute it must keep to (64 s without).
-pub fn default_detector() -> DetectorArgs {
+pub fn default_detector(given: DetectorArgs) -> DetectorArgs {
     #[cfg(feature = "cnn")]
     if roadtrack_cnn::centernet::default_model_path().is_file() {
         let mut d = DetectorArgs {
             detector: Some(crate::common::DetectorArg::Cnn),
-            ..DetectorArgs::default()
+            ..given
         };
         d.onnx.no_flip = true;
         return d;
     }
-    DetectorArgs::default()
+    given
 }
 
 /// `configs/relaxation-video.toml`, built in.
@@ -398,10 +400,10 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
         detector_flags: format!(
             "--detector {}{}",
             crate::common::detector_name(&cfg.detector),
-            if cfg.detector.onnx.no_flip {
-                " --no-flip"
+            if cfg.detector.detector == Some(crate::common::DetectorArg::Cnn) {
+                cfg.detector.onnx.cnn_flags()
             } else {
-                ""
+                String::new()
             }
         ),
         detector_default: cfg.detector_default,
