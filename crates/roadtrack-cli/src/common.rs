@@ -128,6 +128,17 @@ impl BadFrameArgs {
     }
 }
 
+/// Writes `text` to standard output. A reader that has gone (`roadtrack demo | head`) ends
+/// the output quietly, where `println!` would panic.
+pub fn print_out(text: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.context("writing to standard output"),
+    }
+}
+
 /// After a run under `--on-bad-frame skip`: tells the skipped frames of `source` on stderr
 /// and writes them to the sidecar of `output` (`<output>.skipped.json`; none for `-` or
 /// without an output). Does nothing under `fail`.

@@ -160,6 +160,24 @@ fn mot_tracks_with_a_column_cut_out_are_rejected_by_line() {
     expect(&run(&["check", "--format", "mot-tracks", s(&ok)]), 0, &[]);
 }
 
+/// A reader that has gone (`roadtrack check F | head -0`): the output ends quietly, exit 0,
+/// no panic.
+#[test]
+fn a_closed_standard_output_is_not_a_panic() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ok = write(dir.path(), "ok.txt", TRACKS);
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    let o = bin()
+        .args(["check", "--format", "mot-tracks"])
+        .arg(&ok)
+        .stdout(writer)
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+}
+
 #[test]
 fn an_unknown_bench_stage_is_a_usage_error_listing_the_stages() {
     let o = run(&["bench", "--stages", "warp"]);

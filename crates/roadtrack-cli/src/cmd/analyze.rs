@@ -58,9 +58,9 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         roadtrack::io::geojson::write_geojson(g, &points)?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&result)?);
+        crate::common::print_out(&format!("{}\n", serde_json::to_string_pretty(&result)?))?;
     } else {
-        print!("{}", summary(&result));
+        crate::common::print_out(&summary(&result))?;
     }
     ui.info(format!("analysis written to {}", args.output.display()));
     Ok(())

@@ -284,10 +284,11 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
     if args.json {
         let v =
             serde_json::json!({ "machine": machine, "build": build_profile(), "stages": results });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        crate::common::print_out(&format!("{}\n", serde_json::to_string_pretty(&v)?))?;
     } else {
-        println!(
-            "machine: {} ({} cores, {} rayon threads), {} build",
+        use std::fmt::Write as _;
+        let mut text = format!(
+            "machine: {} ({} cores, {} rayon threads), {} build\n",
             machine.cpu,
             machine.cores,
             machine.rayon_threads,
@@ -307,16 +308,19 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
             .max()
             .unwrap_or(0)
             .max(5);
-        println!(
+        let _ = writeln!(
+            text,
             "{:<ws$} {:<wi$} {:>8} {:>9} {:>12}",
             "stage", "input", "items", "seconds", "per second"
         );
         for r in &results {
-            println!(
+            let _ = writeln!(
+                text,
                 "{:<ws$} {:<wi$} {:>8} {:>9.3} {:>8.1} {}",
                 r.stage, r.input, r.items, r.seconds, r.per_second, r.unit
             );
         }
+        crate::common::print_out(&text)?;
     }
     Ok(())
 }

@@ -91,7 +91,10 @@ pub fn run(args: Args, _ui: &Ui) -> Result<()> {
             io::points::read_estimates(&args.file)?.len()
         ),
     };
-    println!("{}: ok ({format:?}): {summary}", args.file.display());
+    crate::common::print_out(&format!(
+        "{}: ok ({format:?}): {summary}\n",
+        args.file.display()
+    ))?;
     Ok(())
 }
 

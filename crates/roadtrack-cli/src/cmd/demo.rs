@@ -66,12 +66,14 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
         bar.tick();
     })?;
     bar.finish_and_clear();
-    println!(
-        "{:<12} {:>6} {:>7} {:>7} {:>7} {:>6} {:>6} {:>8}",
+    use std::fmt::Write as _;
+    let mut text = format!(
+        "{:<12} {:>6} {:>7} {:>7} {:>7} {:>6} {:>6} {:>8}\n",
         "method", "tracks", "MOTA", "IDF1", "HOTA", "IDSW", "trips", "turning"
     );
     for m in &report.methods {
-        println!(
+        let _ = writeln!(
+            text,
             "{:<12} {:>6} {:>7.3} {:>7.3} {:>7.3} {:>6} {:>6} {:>8}",
             m.method,
             m.tracks,
@@ -84,6 +86,7 @@ pub fn run(args: Args, ui: &Ui) -> Result<()> {
                 .map_or("–".into(), |e| format!("{:.0} %", 100.0 * e))
         );
     }
-    println!("report: {}", report.report.display());
+    let _ = writeln!(text, "report: {}", report.report.display());
+    crate::common::print_out(&text)?;
     Ok(())
 }
