@@ -210,13 +210,13 @@ impl Default for CenterNetConfig {
             // boxes). Their centres lie inside each other's boxes, offset along the car (on
             // the aerial scenes of seeds 1–3, 1 188 of 1 206 such pairs at least three times
             // further along the better box's longer side than across it; on the oblique road
-            // 31 of 231); those of cars queued bumper to bumper do not. In an oblique view a queued car's centre lies inside
-            // the box of the car in front, higher in the image: without the 24 px limit
-            // (grown 1.2 times) the seed-0 oblique intersection's vehicle recall fell 0.865
-            // → 0.768; without the lower limit and the direction the far field of the
-            // oblique road lost its small overlapping cars (HOTA from video, seed 2, 0.389 →
-            // 0.356). Grown 1.1 times against 1 or 1.2: the best F1 on the aerial scenes of
-            // seeds 0–2 (docs/DETECTION.md "Second peaks").
+            // 30 of 231); those of cars queued bumper to bumper do not. In an oblique view a
+            // queued car's centre lies inside the box of the car in front, higher in the
+            // image: without the 24 px limit (grown 1.2 times) the seed-0 oblique
+            // intersection's vehicle recall fell 0.865 → 0.768; without the lower limit and
+            // the direction the far field of the oblique road lost its small overlapping cars
+            // (HOTA from video, seed 2, 0.389 → 0.356). Grown 1.1 times against 1 or 1.2: the
+            // best F1 on the aerial scenes of seeds 0–2 (docs/DETECTION.md "Second peaks").
             second_peak_max_side: 24.0,
             second_peak_min_side: 8.0,
             second_peak_grow: 1.1,
