@@ -151,7 +151,7 @@ fn input_size(s: &str) -> Result<[u32; 2], String> {
 impl OnnxArgs {
     /// The given flags by name (for "only with --detector onnx" errors).
     pub fn given(&self) -> Vec<(&'static str, bool)> {
-        vec![
+        let mut given = vec![
             ("--onnx-config", self.onnx_config.is_some()),
             ("--layout", self.layout.is_some()),
             ("--min-score", self.min_score.is_some()),
@@ -162,10 +162,26 @@ impl OnnxArgs {
             ("--resize", self.resize.is_some()),
             ("--detr-scores", self.detr_scores.is_some()),
             ("--classes", self.classes.is_some()),
+        ];
+        given.extend(self.cnn_only());
+        given
+    }
+
+    /// The flags only `--detector cnn` takes, by name, and whether each was given.
+    fn cnn_only(&self) -> Vec<(&'static str, bool)> {
+        let mut flags = vec![
             ("--pyramid", self.pyramid.is_some()),
             ("--coarse-min-score", self.coarse_min_score.is_some()),
             ("--zoom-small", self.zoom_small.is_some()),
             ("--zoom-mode", self.zoom_mode.is_some()),
+        ];
+        flags.extend(self.cnn_switches());
+        flags
+    }
+
+    /// The learned detector's on/off flags, by name, and whether each was given.
+    fn cnn_switches(&self) -> [(&'static str, bool); 5] {
+        [
             ("--keep-nested", self.keep_nested),
             ("--keep-second-peaks", self.keep_second_peaks),
             ("--no-flip", self.no_flip),
@@ -195,13 +211,7 @@ impl OnnxArgs {
                 ZoomModeArg::Add => " --zoom-mode add",
             });
         }
-        for (flag, on) in [
-            ("--keep-nested", self.keep_nested),
-            ("--keep-second-peaks", self.keep_second_peaks),
-            ("--no-flip", self.no_flip),
-            ("--flip-vertical", self.flip_vertical),
-            ("--no-box-gain", self.no_box_gain),
-        ] {
+        for (flag, on) in self.cnn_switches() {
             if on {
                 out.push(' ');
                 out.push_str(flag);
@@ -213,23 +223,11 @@ impl OnnxArgs {
     /// The given flags that `--detector cnn` does not take (it takes --min-score and
     /// --iou-threshold).
     pub fn given_not_cnn(&self) -> Vec<(&'static str, bool)> {
+        let cnn = self.cnn_only();
         self.given()
             .into_iter()
             .filter(|(f, _)| {
-                !matches!(
-                    *f,
-                    "--min-score"
-                        | "--iou-threshold"
-                        | "--pyramid"
-                        | "--coarse-min-score"
-                        | "--zoom-small"
-                        | "--zoom-mode"
-                        | "--keep-nested"
-                        | "--keep-second-peaks"
-                        | "--no-flip"
-                        | "--flip-vertical"
-                        | "--no-box-gain"
-                )
+                !matches!(*f, "--min-score" | "--iou-threshold") && !cnn.iter().any(|(c, _)| c == f)
             })
             .collect()
     }
@@ -339,17 +337,7 @@ impl OnnxArgs {
         };
         let model = self.model()?;
         crate::flags::reject_given(
-            &[
-                ("--pyramid", self.pyramid.is_some()),
-                ("--coarse-min-score", self.coarse_min_score.is_some()),
-                ("--zoom-small", self.zoom_small.is_some()),
-                ("--zoom-mode", self.zoom_mode.is_some()),
-                ("--keep-nested", self.keep_nested),
-                ("--keep-second-peaks", self.keep_second_peaks),
-                ("--no-flip", self.no_flip),
-                ("--flip-vertical", self.flip_vertical),
-                ("--no-box-gain", self.no_box_gain),
-            ],
+            &self.cnn_only(),
             "only with --detector cnn, not --detector onnx",
         )?;
         let mut config: OnnxDetectorConfig = match self.onnx_config.as_deref() {
