@@ -30,6 +30,14 @@ pub struct Packed {
     bias: Vec<f32>,
 }
 
+/// A cache line of stack: the kernels hold one so that LLVM realigns their frames to 64
+/// bytes. The tiles of 24 accumulators spill a few vectors in the inner loop; from a
+/// frame 16 bytes off a line, every spill load and store straddled two cache lines, and
+/// the learned detector ran at 2/3 of its speed whenever the callers' stack depth put it
+/// there (docs/PERFORMANCE.md "A regression from stack alignment").
+#[repr(align(64))]
+struct Align64([u8; 64]);
+
 /// The vector kernel (`P` output pixels of a row at a time, `V` vectors of `LANES` output
 /// channels each, blocks of `LANES · V` channels in turn), for one instruction set.
 /// [`Packed::rows_avx2`] and [`Packed::rows_avx512`] are the same code over 8 and 16 lanes.
@@ -58,6 +66,10 @@ macro_rules! vector_kernel {
                 self.bias.as_ptr(),
             );
             let sp = skip.map(<[f32]>::as_ptr);
+            // A 64-byte-aligned local whose address escapes: LLVM realigns the frame and
+            // spills vectors with aligned moves ([`Align64`]).
+            let anchor = Align64([0; 64]);
+            std::hint::black_box(&anchor.0);
             // The call's fields as locals: the stores through `op` could otherwise be taken
             // to change them, and they would be reloaded in the inner loop.
             let (offsets, in_col, out_col, relu) =
