@@ -260,7 +260,46 @@ fn fuzz_relaxation_tracker_config() {
 }
 
 fn mrf(cases: u32) {
-    fuzz_config::<MrfConfig>("mrf", cases, &[], |c| c.validate(), &[]);
+    let junction = committed("mrf-intersection.toml");
+    let aerial = committed("mrf-aerial.toml");
+    fuzz_config::<MrfConfig>("mrf", cases, &[&junction, &aerial], |c| c.validate(), &[]);
+}
+
+/// The committed MRF configs load, validate and differ from the default in the fields
+/// their comments name, and only there: the aerial file is the junction file with a
+/// 2 px distance gate.
+#[test]
+fn committed_mrf_configs_load() {
+    let load = |name: &str| -> MrfConfig {
+        let c: MrfConfig =
+            toml::from_str(&committed(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+        c.validate()
+            .unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+        c
+    };
+    let (junction, aerial) = (load("mrf-intersection.toml"), load("mrf-aerial.toml"));
+    let default = MrfConfig::default();
+    assert_eq!(
+        (junction.max_missed_frames, junction.appearance_scale),
+        (25, 20.0)
+    );
+    assert_eq!(
+        MrfConfig {
+            max_missed_frames: default.max_missed_frames,
+            appearance_scale: default.appearance_scale,
+            ..junction.clone()
+        },
+        default
+    );
+    assert_eq!(aerial.gate_px, 2.0);
+    assert_ne!(default.gate_px, 2.0);
+    assert_eq!(
+        MrfConfig {
+            gate_px: junction.gate_px,
+            ..aerial
+        },
+        junction
+    );
 }
 
 /// 2 000 cases.
