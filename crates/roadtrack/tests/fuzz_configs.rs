@@ -230,6 +230,13 @@ fn committed(name: &str) -> String {
     std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
+/// `configs/NAME`, parsed and validated; a panic naming the file otherwise.
+fn load_committed<T: DeserializeOwned>(name: &str, validate: impl Fn(&T) -> Result<()>) -> T {
+    let c: T = toml::from_str(&committed(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+    validate(&c).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
+    c
+}
+
 fn relaxation(cases: u32) {
     let a = committed("relaxation.toml");
     let b = committed("relaxation-intersection.toml");
@@ -270,13 +277,7 @@ fn mrf(cases: u32) {
 /// 2 px distance gate.
 #[test]
 fn committed_mrf_configs_load() {
-    let load = |name: &str| -> MrfConfig {
-        let c: MrfConfig =
-            toml::from_str(&committed(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
-        c.validate()
-            .unwrap_or_else(|e| panic!("configs/{name}: {e}"));
-        c
-    };
+    let load = |name| load_committed(name, MrfConfig::validate);
     let (junction, aerial) = (load("mrf-intersection.toml"), load("mrf-aerial.toml"));
     let default = MrfConfig::default();
     assert_eq!(
@@ -371,13 +372,7 @@ fn background(cases: u32) {
 /// say they do.
 #[test]
 fn committed_detector_configs_load() {
-    let load = |name: &str| -> BackgroundDetectorConfig {
-        let c: BackgroundDetectorConfig =
-            toml::from_str(&committed(name)).unwrap_or_else(|e| panic!("configs/{name}: {e}"));
-        c.validate()
-            .unwrap_or_else(|e| panic!("configs/{name}: {e}"));
-        c
-    };
+    let load = |name| load_committed(name, BackgroundDetectorConfig::validate);
     let (people, mixed) = (
         load("detect-pedestrians.toml"),
         load("detect-intersection.toml"),
