@@ -5,9 +5,10 @@ the centres of a detections CSV (`roadtrack detect -o F.csv`), matched by centre
 track is written with the size of its last detection, as MOTChallenge tracks.
 
     python3 scripts/norfair_points.py SEQ_DIR DETS.csv OUT.txt [--threshold PX]
+        [--hit-counter-max N] [--initialization-delay N]
 
-Settings: distance_threshold 1.5 px (default; 3 px scored lower on the aerial crossing),
-hit_counter_max 15, initialization_delay 3. Not part of the test suite; needs
+Defaults: distance_threshold 1.5 px (3 px scored lower on the aerial crossing),
+hit_counter_max 15, initialization_delay 3 (norfair requires it below hit_counter_max). Not part of the test suite; needs
 `pip install norfair`.
 """
 import argparse
@@ -26,6 +27,8 @@ def main():
     ap.add_argument("dets")
     ap.add_argument("out")
     ap.add_argument("--threshold", type=float, default=1.5)
+    ap.add_argument("--hit-counter-max", type=int, default=15)
+    ap.add_argument("--initialization-delay", type=int, default=3)
     a = ap.parse_args()
     boxes = defaultdict(list)
     with open(a.dets) as f:
@@ -34,8 +37,8 @@ def main():
     tracker = Tracker(
         distance_function="mean_euclidean",
         distance_threshold=a.threshold,
-        hit_counter_max=15,
-        initialization_delay=3,
+        hit_counter_max=a.hit_counter_max,
+        initialization_delay=a.initialization_delay,
     )
     rows = []
     for frame in range(1, seq_length(a.seq, max(boxes) if boxes else 0) + 1):
