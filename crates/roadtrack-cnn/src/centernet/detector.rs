@@ -25,7 +25,7 @@ use roadtrack::class::ObjectClass;
 use roadtrack::detect::FrameDetections;
 use roadtrack::detect::nested::NestedConfig;
 use roadtrack::detection::Detection;
-use roadtrack::error::{Error, Result};
+use roadtrack::error::{Error, Result, check_range};
 use roadtrack::frame::Frame;
 use roadtrack::geometry::BBox;
 use roadtrack::likelihood::{DenseScorer, ScoreMap};
@@ -259,21 +259,14 @@ impl roadtrack::config::Validate for CenterNetConfig {
             ("second_peak_min_side", self.second_peak_min_side),
             ("second_peak_along", self.second_peak_along),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(Error::config(
-                    "CenterNetConfig",
-                    field,
-                    format!("must be ≥ 0 and finite, got {v}"),
-                ));
-            }
+            check_range("CenterNetConfig", field, v, 0.0..)?;
         }
-        if !(1.0..=4.0).contains(&self.second_peak_grow) {
-            return Err(Error::config(
-                "CenterNetConfig",
-                "second_peak_grow",
-                format!("must be in [1, 4], got {}", self.second_peak_grow),
-            ));
-        }
+        check_range(
+            "CenterNetConfig",
+            "second_peak_grow",
+            self.second_peak_grow,
+            1.0..=4.0,
+        )?;
         if !(1..=8).contains(&self.pyramid) {
             return Err(Error::config(
                 "CenterNetConfig",

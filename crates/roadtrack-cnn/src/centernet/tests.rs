@@ -222,23 +222,22 @@ fn a_second_peak_on_a_small_vehicle_is_dropped_and_queued_neighbours_are_kept() 
             (904.0, 100.0),
         ]
     );
-    // Each limit keeps a box the rule would otherwise drop.
-    let any_direction = CenterNetConfig {
-        second_peak_along: 0.0,
-        ..cfg.clone()
-    };
-    assert_eq!(
-        drop_second_peaks(boxes.clone(), &any_direction).len(),
-        kept.len() - 1
-    );
-    let no_lower_limit = CenterNetConfig {
-        second_peak_min_side: 0.0,
-        ..cfg.clone()
-    };
-    assert_eq!(
-        drop_second_peaks(boxes.clone(), &no_lower_limit).len(),
-        kept.len() - 1
-    );
+    // Each limit keeps a box the rule would otherwise drop: any direction, no lower limit.
+    for without_limit in [
+        CenterNetConfig {
+            second_peak_along: 0.0,
+            ..cfg.clone()
+        },
+        CenterNetConfig {
+            second_peak_min_side: 0.0,
+            ..cfg.clone()
+        },
+    ] {
+        assert_eq!(
+            drop_second_peaks(boxes.clone(), &without_limit).len(),
+            kept.len() - 1
+        );
+    }
     // The better peak stays whichever comes first in the input.
     let mut reversed = boxes.clone();
     reversed.reverse();
