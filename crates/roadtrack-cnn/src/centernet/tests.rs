@@ -145,9 +145,8 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
         cand(502.0, 50.0, 20.0, 10.0, car, 0.3),
     ];
     let kept = drop_nested(boxes.clone(), &cfg);
-    let keys = |v: &[Candidate]| -> Vec<(f64, f64)> { v.iter().map(|c| (c.cx, c.cy)).collect() };
     assert_eq!(
-        keys(&kept),
+        centres(&kept),
         vec![
             (100.0, 100.0),
             (120.0, 100.0),
@@ -163,7 +162,7 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     reversed.reverse();
     let mut back = drop_nested(reversed, &cfg);
     back.reverse();
-    assert_eq!(keys(&back), keys(&kept));
+    assert_eq!(centres(&back), centres(&kept));
     // The moto's half inside counts at a fraction of 0.5.
     let mut half = cfg.clone();
     half.nested.vehicle_fraction = 0.5;
@@ -187,6 +186,11 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     }
 }
 
+/// The candidates' centres, in order.
+fn centres(v: &[Candidate]) -> Vec<(f64, f64)> {
+    v.iter().map(|c| (c.cx, c.cy)).collect()
+}
+
 #[test]
 fn a_second_peak_on_a_small_vehicle_is_dropped_and_queued_neighbours_are_kept() {
     let cfg = CenterNetConfig::default();
@@ -206,9 +210,8 @@ fn a_second_peak_on_a_small_vehicle_is_dropped_and_queued_neighbours_are_kept() 
         cand(904.0, 100.0, 6.0, 4.0, car, 0.8),  // under 8 px, kept
     ];
     let kept = drop_second_peaks(boxes.clone(), &cfg);
-    let keys = |v: &[Candidate]| -> Vec<(f64, f64)> { v.iter().map(|c| (c.cx, c.cy)).collect() };
     assert_eq!(
-        keys(&kept),
+        centres(&kept),
         vec![
             (106.0, 100.0),
             (122.0, 100.0),
@@ -243,7 +246,7 @@ fn a_second_peak_on_a_small_vehicle_is_dropped_and_queued_neighbours_are_kept() 
     reversed.reverse();
     let mut back = drop_second_peaks(reversed, &cfg);
     back.reverse();
-    assert_eq!(keys(&back), keys(&kept));
+    assert_eq!(centres(&back), centres(&kept));
     // The growth: 6.3 px from a 12 px box's centre is outside it (6) but inside it grown
     // 1.1 times (6.6).
     let pair = vec![
