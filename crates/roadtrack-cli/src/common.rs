@@ -245,7 +245,7 @@ pub struct LifecycleArgs {
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
     /// shadow suppression, hold, ghost suppression or region splitting; region centroids).
-    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes", "smooth_vehicle_boxes"])]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes", "smooth_vehicle_boxes", "orient_walkers"])]
     pub as_published: bool,
     /// Offline gap closing: join a track that ends to one that starts up to N frames later
     /// (or up to 4 frames earlier) where its motion leads, under the first one's id, with
@@ -267,6 +267,12 @@ pub struct LifecycleArgs {
     /// --smooth-boxes].
     #[arg(long, value_name = "N")]
     pub smooth_vehicle_boxes: Option<u32>,
+    /// Top-down views only: turn each pedestrian's smoothed box to their direction of
+    /// motion, as the box of a footprint narrower along the walk than across it (same
+    /// area). For walkers of a few pixels seen from above (`--dots`); needs the box
+    /// smoothing (docs/TRACKING.md "Walkers seen from above").
+    #[arg(long)]
+    pub orient_walkers: bool,
 }
 
 impl LifecycleArgs {
@@ -311,11 +317,13 @@ impl LifecycleArgs {
         if let Some(k) = self.smooth_vehicle_boxes {
             config.vehicle_half_window_frames = Some(k);
         }
+        config.orient_walkers = self.orient_walkers;
         crate::flags::check_overrides(
             config.validate(),
             &[
                 ("vehicle_half_window_frames", "--smooth-vehicle-boxes", true),
                 ("half_window_frames", "--smooth-boxes", true),
+                ("orient_walkers", "--orient-walkers", true),
             ],
             None,
         )?;
