@@ -236,7 +236,7 @@ pub enum DetectorArg {
 #[derive(Debug, Clone, clap::Args)]
 pub struct LifecycleArgs {
     /// Write a track only once it has been seen in N frames (1: every track).
-    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..))]
     pub confirm_hits: u32,
     /// Fill gaps of up to N frames in a track with interpolated boxes (0: none).
     #[arg(long, value_name = "N", default_value_t = 10)]
