@@ -642,6 +642,11 @@ fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
             "--orient-walkers",
         ),
         (&["--as-published", "--orient-walkers"], "--orient-walkers"),
+        (
+            &["--smooth-robust", "--smooth-boxes", "0"],
+            "--smooth-robust",
+        ),
+        (&["--as-published", "--smooth-robust"], "--smooth-robust"),
     ] {
         let o = bin()
             .arg("track")
