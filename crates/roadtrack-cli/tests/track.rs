@@ -4,7 +4,24 @@ mod common;
 use common::{bin, stderr};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
-use std::path::Path;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+
+/// Runs `roadtrack -q track SEQ ARGS… -o OUT` on `threads` threads; fails the test with its
+/// stderr when it fails. Returns OUT.
+fn track_ok(seq: &Path, args: &[&OsStr], threads: &str, out: PathBuf) -> PathBuf {
+    let o = bin()
+        .env("RAYON_NUM_THREADS", threads)
+        .args(["-q", "track"])
+        .arg(seq)
+        .args(args)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
 
 fn simulate(dir: &Path, scene: SceneKind, view: ViewKind, frames: u32) {
     let cfg = SimConfig {
@@ -565,27 +582,12 @@ fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
     simulate(&seq, SceneKind::Road, ViewKind::Aerial, 100);
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/relaxation-video.toml");
     let run = |extra: &[&str], threads: &str, name: &str| {
-        let out = dir.path().join(name);
-        let o = bin()
-            .env("RAYON_NUM_THREADS", threads)
-            .arg("track")
-            .arg(&seq)
-            .args([
-                "--method",
-                "relaxation",
-                "--detector",
-                "file",
-                "-q",
-                "--config",
-            ])
-            .arg(&config)
-            .args(extra)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
-        out
+        let mut args: Vec<&OsStr> = ["--method", "relaxation", "--detector", "file", "--config"]
+            .map(OsStr::new)
+            .to_vec();
+        args.push(config.as_os_str());
+        args.extend(extra.iter().map(OsStr::new));
+        track_ok(&seq, &args, threads, dir.path().join(name))
     };
     let off = run(&["--smooth-boxes", "0"], "2", "off.txt");
     let on = run(&[], "2", "on.txt");
@@ -693,28 +695,12 @@ fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
     std::fs::write(&dots, csv).expect("write");
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/mrf-aerial.toml");
     let run = |extra: &[&str], name: &str| {
-        let out = dir.path().join(name);
-        let o = bin()
-            .arg("track")
-            .arg(&seq)
-            .args([
-                "--method",
-                "mrf",
-                "-q",
-                "--detector",
-                "file",
-                "--detections",
-            ])
-            .arg(&dots)
-            .arg("--config")
-            .arg(&config)
-            .args(extra)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
-        out
+        let mut args: Vec<&OsStr> = ["--method", "mrf", "--detector", "file", "--detections"]
+            .map(OsStr::new)
+            .to_vec();
+        args.extend([dots.as_os_str(), OsStr::new("--config"), config.as_os_str()]);
+        args.extend(extra.iter().map(OsStr::new));
+        track_ok(&seq, &args, "2", dir.path().join(name))
     };
     let (square, turned) = (
         run(&[], "square.txt"),
