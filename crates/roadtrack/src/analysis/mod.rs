@@ -487,8 +487,8 @@ fn point_in_polygon(p: Point, poly: &[[f64; 2]]) -> bool {
     inside
 }
 
-/// `p`-th percentile (0–100) of sorted values by linear interpolation.
-fn percentile(sorted: &[f64], p: f64) -> f64 {
+/// `p`-th percentile (0–100) of sorted values by linear interpolation (NaN when empty).
+pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
     }

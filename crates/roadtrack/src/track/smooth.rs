@@ -175,32 +175,51 @@ impl SmoothConfig {
 /// One box of a track: frame and centre x, centre y, width, height.
 type Sample = (u32, [f64; 4]);
 
-/// The local linear fit at `frame` of `samples` (any order): the lines' values at `frame`
-/// and their slopes per frame; `None` under 3 samples. With `huber = Some(k)` the centre's
-/// two lines are fitted robustly ([`robust_line`]); the sizes always by least squares.
-fn fit_at(samples: &[Sample], frame: u32, huber: Option<f64>) -> Option<([f64; 4], [f64; 4])> {
-    if samples.len() < 3 {
-        return None;
-    }
-    let t: Vec<f64> = samples
-        .iter()
-        .map(|s| f64::from(s.0) - f64::from(frame))
-        .collect();
-    let mut out = [0.0; 4];
-    let mut slopes = [0.0; 4];
-    let mut y = vec![0.0; samples.len()];
-    let mut weights = vec![1.0; samples.len()];
-    for c in 0..4 {
-        for (v, s) in y.iter_mut().zip(samples) {
-            *v = s.1[c];
+/// Buffers of the line fits, kept by the stage so that a fit allocates nothing.
+#[derive(Debug, Default)]
+struct FitBuffers {
+    /// Frames relative to the fitted one.
+    t: Vec<f64>,
+    /// One component of the boxes.
+    y: Vec<f64>,
+    /// Weights.
+    w: Vec<f64>,
+    /// Residuals, then their sorted deviations ([`robust_line`]).
+    res: Vec<f64>,
+    sorted: Vec<f64>,
+}
+
+impl FitBuffers {
+    /// The local linear fit at `frame` of `samples` (any order): the lines' values at
+    /// `frame` and their slopes per frame; `None` under 3 samples. With `huber = Some(k)`
+    /// the centre's two lines are fitted robustly ([`robust_line`]); the sizes always by
+    /// least squares.
+    fn fit_at(
+        &mut self,
+        samples: &[Sample],
+        frame: u32,
+        huber: Option<f64>,
+    ) -> Option<([f64; 4], [f64; 4])> {
+        if samples.len() < 3 {
+            return None;
         }
-        weights.fill(1.0);
-        (out[c], slopes[c]) = match huber {
-            Some(k) if c < 2 => robust_line(&t, &y, &mut weights, k),
-            _ => weighted_line(&t, &y, &weights),
-        };
+        self.t.clear();
+        self.t
+            .extend(samples.iter().map(|s| f64::from(s.0) - f64::from(frame)));
+        let mut out = [0.0; 4];
+        let mut slopes = [0.0; 4];
+        for c in 0..4 {
+            self.y.clear();
+            self.y.extend(samples.iter().map(|s| s.1[c]));
+            self.w.clear();
+            self.w.resize(samples.len(), 1.0);
+            (out[c], slopes[c]) = match huber {
+                Some(k) if c < 2 => robust_line(self, k),
+                _ => weighted_line(&self.t, &self.y, &self.w),
+            };
+        }
+        Some((out, slopes))
     }
-    Some((out, slopes))
 }
 
 /// Weighted least squares of `y = a + b t`: `(a, b)` (`b` = 0 when all `t` are equal).
@@ -228,41 +247,39 @@ const HUBER_ITERATIONS: usize = 10;
 // weights of 1 rather than dividing by zero.
 const HUBER_MIN_SCALE: f64 = 0.02;
 
-/// Huber's M-estimate of `y = a + b t` by iteratively reweighted least squares: each
-/// round weighs a residual `r` by `min(1, c / |r|)`, `c = k · σ̂`, `σ̂ = 1.4826 ·` the
-/// median absolute deviation of the last fit's residuals (Huber 1964; k = 1.345 is the
-/// usual 95 % efficiency at Gaussian noise). `w` starts at 1 and is scratch space.
-fn robust_line(t: &[f64], y: &[f64], w: &mut [f64], k: f64) -> (f64, f64) {
-    let mut line = weighted_line(t, y, w);
-    let mut res = vec![0.0; t.len()];
+/// Huber's M-estimate of `y = a + b t` (`b.t`, `b.y`) by iteratively reweighted least
+/// squares: each round weighs a residual `r` by `min(1, c / |r|)`, `c = k · σ̂`, `σ̂ =
+/// 1.4826 ·` the median absolute deviation of the last fit's residuals (Huber 1964; k =
+/// 1.345 is the usual 95 % efficiency at Gaussian noise). `b.w` starts at 1 and ends with
+/// the last weights.
+fn robust_line(b: &mut FitBuffers, k: f64) -> (f64, f64) {
+    let mut line = weighted_line(&b.t, &b.y, &b.w);
     for _ in 0..HUBER_ITERATIONS {
-        for ((r, t), y) in res.iter_mut().zip(t).zip(y) {
-            *r = y - (line.0 + line.1 * t);
-        }
-        let c = k * (1.4826 * median_abs_deviation(&res)).max(HUBER_MIN_SCALE);
-        for (w, r) in w.iter_mut().zip(&res) {
+        b.res.clear();
+        b.res
+            .extend(b.t.iter().zip(&b.y).map(|(t, y)| y - (line.0 + line.1 * t)));
+        let mad = median_abs_deviation(&b.res, &mut b.sorted);
+        let c = k * (1.4826 * mad).max(HUBER_MIN_SCALE);
+        for (w, r) in b.w.iter_mut().zip(&b.res) {
             *w = if r.abs() <= c { 1.0 } else { c / r.abs() };
         }
-        line = weighted_line(t, y, w);
+        line = weighted_line(&b.t, &b.y, &b.w);
     }
     line
 }
 
-/// The median of `|v − median(v)|`.
-fn median_abs_deviation(v: &[f64]) -> f64 {
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        }
+/// The median of `|v − median(v)|`; `sorted` is scratch space.
+fn median_abs_deviation(v: &[f64], sorted: &mut Vec<f64>) -> f64 {
+    let median = |sorted: &mut Vec<f64>| {
+        sorted.sort_by(f64::total_cmp);
+        crate::analysis::percentile(sorted, 50.0)
     };
-    let mut a = v.to_vec();
-    let m = median(&mut a);
-    let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    median(&mut d)
+    sorted.clear();
+    sorted.extend_from_slice(v);
+    let m = median(sorted);
+    sorted.clear();
+    sorted.extend(v.iter().map(|x| (x - m).abs()));
+    median(sorted)
 }
 
 /// The axis-aligned box, of area `area`, of a footprint `depth_ratio` times as deep as it
@@ -289,6 +306,8 @@ pub struct SmoothStage {
     huber_k: Option<f64>,
     /// Each walker's last measured direction of motion (radians).
     heading: BTreeMap<u64, f64>,
+    /// The fits' buffers.
+    fit: FitBuffers,
     held: VecDeque<FramePoints>,
     /// Each track's boxes in the frames still needed: the `k` frames before the next frame
     /// to leave, and every frame held.
@@ -312,6 +331,7 @@ impl SmoothStage {
                 .then_some((config.walker_depth_ratio, config.walker_min_speed_px)),
             heading: BTreeMap::new(),
             huber_k: (config.huber_k > 0.0).then_some(config.huber_k),
+            fit: FitBuffers::default(),
             held: VecDeque::new(),
             samples: BTreeMap::new(),
         })
@@ -333,7 +353,8 @@ impl SmoothStage {
             };
             window.clear();
             window.extend(series.iter().filter(|s| s.0.abs_diff(frame) <= k).copied());
-            if let Some(([x, y, mut w, mut h], [vx, vy, _, _])) = fit_at(&window, frame, huber)
+            if let Some(([x, y, mut w, mut h], [vx, vy, _, _])) =
+                self.fit.fit_at(&window, frame, huber)
                 && [x, y, w, h].iter().all(|v| v.is_finite())
                 && w > 0.0
                 && h > 0.0
@@ -718,8 +739,16 @@ mod tests {
         y[9] += 4.0;
         let ones = vec![1.0; t.len()];
         let (a_ls, _) = weighted_line(&t, &y, &ones);
-        let mut w = ones.clone();
-        let (a, b) = robust_line(&t, &y, &mut w, 1.345);
+        let huber = |y: &[f64]| {
+            let mut b = FitBuffers {
+                t: t.clone(),
+                y: y.to_vec(),
+                w: ones.clone(),
+                ..FitBuffers::default()
+            };
+            (robust_line(&mut b, 1.345), b.w)
+        };
+        let ((a, b), w) = huber(&y);
         assert!((a_ls - 2.0).abs() > 0.25, "least squares {a_ls}");
         assert!((a - 2.0).abs() < 0.05 && (b - 0.5).abs() < 0.02, "{a} {b}");
         // The outlier ends with the smallest weight, the others near 1.
@@ -731,11 +760,17 @@ mod tests {
         );
         // On an exact line both fits are the line.
         let exact: Vec<f64> = t.iter().map(|t| -1.0 + 0.25 * t).collect();
-        let mut w = ones.clone();
-        let (a, b) = robust_line(&t, &exact, &mut w, 1.345);
+        let ((a, b), _) = huber(&exact);
         assert!((a + 1.0).abs() < 1e-12 && (b - 0.25).abs() < 1e-12);
-        assert_eq!(median_abs_deviation(&[1.0, 2.0, 3.0, 4.0, 100.0]), 1.0);
-        assert_eq!(median_abs_deviation(&[1.0, 2.0, 4.0, 8.0]), 1.5);
+        let mut scratch = Vec::new();
+        assert_eq!(
+            median_abs_deviation(&[1.0, 2.0, 3.0, 4.0, 100.0], &mut scratch),
+            1.0
+        );
+        assert_eq!(
+            median_abs_deviation(&[1.0, 2.0, 4.0, 8.0], &mut scratch),
+            1.5
+        );
     }
 
     #[test]
