@@ -538,6 +538,20 @@ fn train_detector_writes_a_loadable_model_and_a_loss_log() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--motorcycle-share"), "{}", stderr(&o));
     assert!(!dir.path().join("never.onnx").exists());
+    // So is a lorry-and-bus share that leaves no room for the motorcycles given.
+    let o = bin()
+        .args(["-q", "train", "--detector", "--motorcycle-share", "0.5"])
+        .args(["--heavy-share", "0.6", "-o"])
+        .arg(dir.path().join("never.onnx"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--motorcycle-share/--heavy-share"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("never.onnx").exists());
     // The written model runs as --detector cnn.
     let o = bin()
         .arg("detect")

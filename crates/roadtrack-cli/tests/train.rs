@@ -198,4 +198,20 @@ fn detector_training_flags_without_detector_are_a_usage_error() {
         "{}",
         stderr(&o)
     );
+    let o = bin()
+        .args([
+            "train",
+            "--sequence",
+            "/no/such/seq",
+            "--heavy-share",
+            "0.3",
+        ])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--heavy-share: only with --detector"),
+        "{}",
+        stderr(&o)
+    );
 }

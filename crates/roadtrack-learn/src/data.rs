@@ -83,6 +83,10 @@ pub struct DataConfig {
     /// motorcycle share is set so that it is this fraction of the car, lorry, bus and
     /// motorcycle shares together. `None` (the recipe's): the simulator's 0.08.
     pub motorcycle_share: Option<f64>,
+    /// Share of the simulated vehicles that are lorries or buses, in `[0, 1)`, their own
+    /// ratio kept: the episode's lorry and bus shares are scaled so that together they are
+    /// this fraction of all vehicles. `None` (the recipe's): the simulator's 0.12.
+    pub heavy_share: Option<f64>,
 }
 
 impl Default for DataConfig {
@@ -116,6 +120,9 @@ impl Default for DataConfig {
             // Choice: the simulator's mix. A fine-tune at 0.3 found no more motorcycles and
             // fewer cars (docs/EXPERIMENTS.md "More motorcycles in training").
             motorcycle_share: None,
+            // Choice: the simulator's mix (docs/EXPERIMENTS.md "More lorries and buses in
+            // training").
+            heavy_share: None,
         }
     }
 }
@@ -176,16 +183,37 @@ pub fn random_sim_config(rng: &mut impl rand::Rng, data: &DataConfig) -> SimConf
             })
             .collect();
     }
-    if let Some(share) = data.motorcycle_share {
-        let v = &mut c.vehicles;
-        let others = v.car.share + v.truck.share + v.bus.share;
-        v.motorcycle.share = others * share / (1.0 - share);
-    }
+    set_vehicle_mix(&mut c.vehicles, data.motorcycle_share, data.heavy_share);
     c.render.noise_sd = scale(rng, 0.0, 8.0);
     c.render.shadows = rng.random_bool(0.8);
     c.render.sun_azimuth_deg = scale(rng, 0.0, 360.0);
     c.render.sun_elevation_deg = scale(rng, 25.0, 80.0);
     c
+}
+
+/// Scales the motorcycle and the lorry + bus shares of `v` so that each given one is that
+/// fraction of all vehicles; cars (and a class whose share is not given) keep theirs.
+fn set_vehicle_mix(
+    v: &mut roadtrack_sim::VehicleConfig,
+    motorcycle: Option<f64>,
+    heavy: Option<f64>,
+) {
+    let heavy0 = v.truck.share + v.bus.share;
+    // The new total of the shares, from the classes that keep theirs.
+    let total = match (motorcycle, heavy) {
+        (None, None) => return,
+        (Some(m), None) => (v.car.share + heavy0) / (1.0 - m),
+        (None, Some(h)) => (v.car.share + v.motorcycle.share) / (1.0 - h),
+        (Some(m), Some(h)) => v.car.share / (1.0 - m - h),
+    };
+    if let Some(m) = motorcycle {
+        v.motorcycle.share = m * total;
+    }
+    if let Some(h) = heavy {
+        let k = h * total / heavy0;
+        v.truck.share *= k;
+        v.bus.share *= k;
+    }
 }
 
 /// Per-channel gain and offset, a light blur and a JPEG round trip at a random quality.

@@ -356,6 +356,21 @@ fn bad_crop_scales_are_refused_by_name() {
             },
             "motorcycle_share",
         ),
+        (
+            DataConfig {
+                heavy_share: Some(-0.1),
+                ..DataConfig::default()
+            },
+            "heavy_share",
+        ),
+        (
+            DataConfig {
+                motorcycle_share: Some(0.5),
+                heavy_share: Some(0.5),
+                ..DataConfig::default()
+            },
+            "motorcycle_share/heavy_share",
+        ),
     ] {
         let cfg = TrainConfig {
             data,
@@ -511,4 +526,51 @@ fn the_motorcycle_share_sets_the_episodes_mix_and_nothing_else() {
             .motorcycle
             .share
     );
+}
+
+#[test]
+fn the_heavy_share_sets_lorries_and_buses_together_and_keeps_their_ratio() {
+    use crate::data::random_sim_config;
+    use rand::SeedableRng;
+    let draw = |motorcycle: Option<f64>, heavy: Option<f64>| {
+        let data = DataConfig {
+            motorcycle_share: motorcycle,
+            heavy_share: heavy,
+            ..DataConfig::default()
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(12);
+        (0..5)
+            .map(|_| random_sim_config(&mut rng, &data))
+            .collect::<Vec<_>>()
+    };
+    let plain = draw(None, None);
+    let sim = roadtrack_sim::SimConfig::default().vehicles;
+    for (m, h) in [(None, Some(0.3)), (Some(0.2), Some(0.3)), (Some(0.2), None)] {
+        for (a, b) in plain.iter().zip(draw(m, h)) {
+            let v = &b.vehicles;
+            let all = v.car.share + v.truck.share + v.bus.share + v.motorcycle.share;
+            let heavy = (v.truck.share + v.bus.share) / all;
+            let moto = v.motorcycle.share / all;
+            // Each given share is met; one not given keeps its place beside the cars.
+            match h {
+                Some(h) => assert!((heavy - h).abs() < 1e-12, "{heavy}"),
+                None => assert!(
+                    ((v.truck.share + v.bus.share) / v.car.share
+                        - (sim.truck.share + sim.bus.share) / sim.car.share)
+                        .abs()
+                        < 1e-12
+                ),
+            }
+            match m {
+                Some(m) => assert!((moto - m).abs() < 1e-12, "{moto}"),
+                None => assert_eq!(v.motorcycle.share, sim.motorcycle.share),
+            }
+            assert_eq!(v.car.share, sim.car.share);
+            assert!((v.truck.share / v.bus.share - sim.truck.share / sim.bus.share).abs() < 1e-12);
+            // The same draws otherwise.
+            let mut b = b.clone();
+            b.vehicles = a.vehicles.clone();
+            assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        }
+    }
 }

@@ -118,6 +118,19 @@ impl TrainConfig {
         {
             return bad("motorcycle_share", format!("must be in [0, 1), got {m}"));
         }
+        if let Some(h) = d.heavy_share
+            && !(0.0..1.0).contains(&h)
+        {
+            return bad("heavy_share", format!("must be in [0, 1), got {h}"));
+        }
+        if let (Some(m), Some(h)) = (d.motorcycle_share, d.heavy_share)
+            && m + h >= 1.0
+        {
+            return bad(
+                "motorcycle_share/heavy_share",
+                format!("must sum to under 1, got {m} + {h}"),
+            );
+        }
         if !(d.scale_range.0 > 0.0 && d.scale_range.0 < d.scale_range.1) {
             return bad(
                 "scale_range",

@@ -65,6 +65,10 @@ pub struct DetectorTrainArgs {
     /// "More motorcycles in training").
     #[arg(long, value_name = "SHARE")]
     pub motorcycle_share: Option<f64>,
+    /// --detector: share of the simulated vehicles that are lorries or buses, in [0, 1),
+    /// their own ratio kept [default: the simulator's 0.12].
+    #[arg(long, value_name = "SHARE")]
+    pub heavy_share: Option<f64>,
     /// --detector: no training; copy the learned detector given as --init (.onnx) to -o with
     /// this box gain in its metadata: a_w, b_w, a_h, b_h for car, bus/truck,
     /// bicycle/motorcycle and pedestrian (16 numbers; each side's factor is e^(a + b
@@ -98,6 +102,7 @@ pub fn reject_detector_flags(a: &DetectorTrainArgs) -> Result<()> {
             ("--edge-crops", a.edge_crops.is_some()),
             ("--box-class-weights", a.box_class_weights.is_some()),
             ("--motorcycle-share", a.motorcycle_share.is_some()),
+            ("--heavy-share", a.heavy_share.is_some()),
             ("--box-gain", a.box_gain.is_some()),
         ],
         "only with --detector",
@@ -253,6 +258,7 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
         config.data.box_class_weights.copy_from_slice(v);
     }
     config.data.motorcycle_share = d.motorcycle_share;
+    config.data.heavy_share = d.heavy_share;
     if let Some(v) = args.batch_size {
         config.batch = v;
     }
@@ -278,6 +284,12 @@ pub fn run(args: &super::Args, ui: &Ui) -> Result<()> {
                 "motorcycle_share",
                 "--motorcycle-share",
                 d.motorcycle_share.is_some(),
+            ),
+            ("heavy_share", "--heavy-share", d.heavy_share.is_some()),
+            (
+                "motorcycle_share/heavy_share",
+                "--motorcycle-share/--heavy-share",
+                d.motorcycle_share.is_some() && d.heavy_share.is_some(),
             ),
             ("batch", "--batch-size", args.batch_size.is_some()),
             (
