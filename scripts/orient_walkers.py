@@ -12,10 +12,12 @@ class, so a walker is a square box under 2.5 px (a `--dots` box). For each such 
 
 then the box keeps its area and becomes the axis-aligned box of a footprint RATIO as deep
 as it is wide turned to that direction (`--orient-walkers`); under MIN_SPEED px per frame
-the track keeps its last direction. Other boxes pass as they are.
+the track keeps its last direction. Other boxes pass as they are. With --min-rows N a
+track with fewer than N boxes is left out, as `roadtrack track --confirm-hits N` writes
+only a track seen in N frames.
 
     python3 scripts/norfair_points.py SEQ D.csv PEER.txt
-    python3 scripts/orient_walkers.py PEER.txt OUT.txt [--window 12 --robust]
+    python3 scripts/orient_walkers.py PEER.txt OUT.txt [--window 12 --robust] [--min-rows 32]
     roadtrack evaluate --truth SEQ --tracks OUT.txt --classes agnostic
 
 Not part of the test suite; needs only Python 3.
@@ -62,6 +64,7 @@ def main():
     ap.add_argument("--robust", action="store_true", help="Huber fit of the centres")
     ap.add_argument("--min-speed", type=float, default=0.05, help="px per frame")
     ap.add_argument("--ratio", type=float, default=0.65, help="footprint depth / width")
+    ap.add_argument("--min-rows", type=int, default=0, help="leave out tracks with fewer boxes")
     a = ap.parse_args()
     depth, across = math.sqrt(a.ratio), 1.0 / math.sqrt(a.ratio)
     rows = [line_.strip().split(",") for line_ in open(a.tracks) if line_.strip()]
@@ -70,6 +73,8 @@ def main():
         tracks[int(r[1])][int(r[0])] = r
     out = []
     for track in tracks.values():
+        if len(track) < a.min_rows:
+            continue
         heading = None
         for f in sorted(track):
             r = track[f]

@@ -663,6 +663,36 @@ fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
     }
 }
 
+/// A detections CSV of the truth's walkers (MOT17 class 1) at least half visible, each the
+/// square of its box's area at its centre, as `detect --dots` boxes them; each centre moved
+/// by up to ±`jitter` px on each axis (a fixed sequence, no RNG).
+fn truth_dots(seq: &Path, jitter: f64, out: PathBuf) -> PathBuf {
+    let gt = std::fs::read_to_string(seq.join("gt/gt.txt")).expect("gt.txt");
+    let mut csv = String::from("frame,x,y,w,h,class,score\n");
+    let mut k = 0u64;
+    for line in gt.lines() {
+        let c: Vec<f64> = line
+            .split(',')
+            .map(|v| v.trim().parse().expect("number"))
+            .collect();
+        if c[7] != 1.0 || c[8] < 0.5 {
+            continue;
+        }
+        k += 1;
+        let shift = |p: u64, m: u64| jitter * (2.0 * ((k * p) % m) as f64 / (m - 1) as f64 - 1.0);
+        let (x, y, w, h) = (c[2], c[3], c[4], c[5]);
+        let side = (w * h).sqrt();
+        csv.push_str(&format!(
+            "{},{},{},{side},{side},pedestrian,0.9\n",
+            c[0],
+            x + w / 2.0 + shift(7919, 101),
+            y + h / 2.0 + shift(104_729, 103)
+        ));
+    }
+    std::fs::write(&out, csv).expect("write");
+    out
+}
+
 /// `--orient-walkers`: walkers seen from above detected as squares (the truth's boxes of the
 /// aerial crossing, each turned into the square of its area, as `--dots` boxes them) get
 /// back the shape of their footprint from their motion, so their boxes fit the truth's.
@@ -671,28 +701,7 @@ fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
-    let gt = std::fs::read_to_string(seq.join("gt/gt.txt")).expect("gt.txt");
-    let mut csv = String::from("frame,x,y,w,h,class,score\n");
-    for line in gt.lines() {
-        let c: Vec<f64> = line
-            .split(',')
-            .map(|v| v.trim().parse().expect("number"))
-            .collect();
-        // Walkers (MOT17 class 1) at least half visible.
-        if c[7] != 1.0 || c[8] < 0.5 {
-            continue;
-        }
-        let (x, y, w, h) = (c[2], c[3], c[4], c[5]);
-        let side = (w * h).sqrt();
-        csv.push_str(&format!(
-            "{},{},{},{side},{side},pedestrian,0.9\n",
-            c[0],
-            x + w / 2.0,
-            y + h / 2.0
-        ));
-    }
-    let dots = dir.path().join("dots.csv");
-    std::fs::write(&dots, csv).expect("write");
+    let dots = truth_dots(&seq, 0.0, dir.path().join("dots.csv"));
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/mrf-aerial.toml");
     let run = |extra: &[&str], name: &str| {
         let mut args: Vec<&OsStr> = ["--method", "mrf", "--detector", "file", "--detections"]
@@ -735,4 +744,49 @@ fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
             "{u:?} {v:?}"
         );
     }
+}
+
+/// configs/phd-aerial.toml: the PHD on walkers seen from above as dots (the truth's
+/// walkers as `--dots` squares, centres scattered by up to 0.25 px) tracks them where the
+/// pedestrians' file, made for people 10-60 px tall, mixes them up; the same output at one
+/// and two threads.
+#[test]
+fn the_aerial_phd_file_tracks_dots_the_pedestrians_file_mixes_up() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
+    let dots = truth_dots(&seq, 0.25, dir.path().join("dots.csv"));
+    let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+    let run = |file: &str, threads: &str| {
+        let config = configs.join(file);
+        let args = [
+            OsStr::new("--method"),
+            OsStr::new("phd"),
+            OsStr::new("--detector"),
+            OsStr::new("file"),
+            OsStr::new("--detections"),
+            dots.as_os_str(),
+            OsStr::new("--config"),
+            config.as_os_str(),
+        ];
+        track_ok(
+            &seq,
+            &args,
+            threads,
+            dir.path().join(format!("{file}.{threads}.txt")),
+        )
+    };
+    let aerial = run("phd-aerial.toml", "2");
+    let people = run("filters-pedestrians.toml", "2");
+    let ((h1, i1), (h0, i0)) = (hota_idf1(&seq, &aerial), hota_idf1(&seq, &people));
+    // Measured HOTA 0.30 -> 0.56, IDF1 0.43 -> 0.87.
+    assert!(
+        h1 > h0 + 0.15 && i1 > i0 + 0.25,
+        "HOTA {h0} -> {h1}, IDF1 {i0} -> {i1}"
+    );
+    assert_eq!(
+        std::fs::read(&aerial).expect("read"),
+        std::fs::read(run("phd-aerial.toml", "1")).expect("read"),
+        "1 and 2 threads differ"
+    );
 }

@@ -18,7 +18,7 @@ use roadtrack::config::{parse_toml, to_toml};
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::eval::EvalConfig;
 use roadtrack::track::filter::{
-    FilterTrackConfig, ParticleFilterConfig, PhdConfig, PointFilterConfig,
+    ConstantVelocity, FilterTrackConfig, ParticleFilterConfig, PhdConfig, PointFilterConfig,
 };
 use roadtrack::track::mrf::MrfConfig;
 use roadtrack::track::relaxation::{RelaxationConfig, RelaxationTrackerConfig};
@@ -310,13 +310,33 @@ fn fuzz_mrf_config() {
 }
 
 fn filter_track(cases: u32) {
+    let people = committed("filters-pedestrians.toml");
+    let aerial = committed("phd-aerial.toml");
     fuzz_config::<FilterTrackConfig>(
         "filter_track",
         cases,
-        &[],
+        &[&people, &aerial],
         |c| c.validate(),
         &[&format!("phd.{PHD_EXIT_SPEED}")],
     );
+}
+
+/// configs/phd-aerial.toml loads, validates and differs from the default in the fields its
+/// comments name, and only there.
+#[test]
+fn committed_aerial_phd_config_loads() {
+    let aerial = load_committed("phd-aerial.toml", FilterTrackConfig::validate);
+    let mut want = FilterTrackConfig::default();
+    want.phd.motion = ConstantVelocity::proportional(0.2, 0.05);
+    want.phd.birth_speed_sigma = 0.4;
+    want.phd.survival_prob = 0.99;
+    want.phd.birth_rate = 0.5;
+    want.detections.phd_write_detection_centre = true;
+    want.detections.min_sigma_px = 0.2;
+    want.detections.sigma_box_fraction = 0.1;
+    want.detections.clutter_per_frame = 5.0;
+    assert_ne!(want, FilterTrackConfig::default());
+    assert_eq!(aerial, want);
 }
 
 /// 3 000 cases (the largest config: detector, PF, PHD and likelihood tables).
