@@ -182,36 +182,16 @@ fn train_without_data_is_a_usage_error() {
 
 #[test]
 fn detector_training_flags_without_detector_are_a_usage_error() {
-    let o = bin()
-        .args([
-            "train",
-            "--sequence",
-            "/no/such/seq",
-            "--motorcycle-share",
-            "0.3",
-        ])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("--motorcycle-share: only with --detector"),
-        "{}",
-        stderr(&o)
-    );
-    let o = bin()
-        .args([
-            "train",
-            "--sequence",
-            "/no/such/seq",
-            "--heavy-share",
-            "0.3",
-        ])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("--heavy-share: only with --detector"),
-        "{}",
-        stderr(&o)
-    );
+    for flag in ["--motorcycle-share", "--heavy-share"] {
+        let o = bin()
+            .args(["train", "--sequence", "/no/such/seq", flag, "0.3"])
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("{flag}: only with --detector")),
+            "{}",
+            stderr(&o)
+        );
+    }
 }
