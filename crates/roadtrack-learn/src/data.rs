@@ -202,14 +202,22 @@ fn set_vehicle_mix(
     // The new total of the shares, from the classes that keep theirs.
     let total = match (motorcycle, heavy) {
         (None, None) => return,
-        (Some(m), None) => (v.car.share + heavy0) / (1.0 - m),
+        (Some(m), None) => {
+            // As before the lorry share existed, to the last bit: the motorcycle fine-tune
+            // of docs/EXPERIMENTS.md reruns the same episodes.
+            let others = v.car.share + v.truck.share + v.bus.share;
+            v.motorcycle.share = others * m / (1.0 - m);
+            return;
+        }
         (None, Some(h)) => (v.car.share + v.motorcycle.share) / (1.0 - h),
         (Some(m), Some(h)) => v.car.share / (1.0 - m - h),
     };
     if let Some(m) = motorcycle {
         v.motorcycle.share = m * total;
     }
-    if let Some(h) = heavy {
+    if let Some(h) = heavy
+        && heavy0 > 0.0
+    {
         let k = h * total / heavy0;
         v.truck.share *= k;
         v.bus.share *= k;
