@@ -329,6 +329,7 @@ fn committed_aerial_phd_config_loads() {
     let mut want = FilterTrackConfig::default();
     want.phd.motion = ConstantVelocity::proportional(0.2, 0.05);
     want.phd.birth_speed_sigma = 0.4;
+    want.phd.birth_speed_box_fraction = 0.22;
     want.phd.survival_prob = 0.99;
     want.phd.birth_rate = 0.5;
     want.detections.phd_write_detection_centre = true;

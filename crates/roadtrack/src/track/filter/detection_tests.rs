@@ -132,11 +132,58 @@ fn a_labelled_birth_gets_the_weight_bayes_gives_a_first_detection() -> Result<()
         pos: Point::new(50.0, 50.0),
         sigma: Point::new(2.0, 2.0),
     }];
-    let labels = f.add_labelled_births(&z, 500);
+    let labels = f.add_labelled_births(&z, &[], 500);
     assert_eq!(labels.len(), 1);
     f.update_detections(&z, 0.9, 1.0, LabelUpdate::Bernoulli, None);
     let w = f.expected_count();
     assert!((w - 1.8 / 2.8).abs() < 0.05, "birth weight {w}");
+    Ok(())
+}
+
+#[test]
+fn a_birth_velocity_spread_grows_with_its_box_only_when_asked() -> Result<()> {
+    // σ_v = max(birth_speed_sigma, fraction · longer side): a dot (side 1) keeps the
+    // floor, a 50 px box gets 0.2 · 50 = 10 px/frame; a missing side counts as 0.
+    let z = |x: f64| BoxMeasurement {
+        pos: Point::new(x, 50.0),
+        sigma: Point::new(1.0, 1.0),
+    };
+    let points = [z(20.0), z(50.0), z(80.0)];
+    let spread = |fraction: f64| -> Result<Vec<f64>> {
+        let config = PhdConfig {
+            birth_speed_sigma: 0.5,
+            birth_speed_box_fraction: fraction,
+            ..PhdConfig::default()
+        };
+        let mut f = LabelledPhd::new(config, SurveillanceRegion::new(0.0, 0.0, 100.0, 100.0), 3)?;
+        let labels = f.add_labelled_births(&points, &[1.0, 50.0], 4000);
+        let p = f.particles();
+        Ok(labels
+            .iter()
+            .map(|&l| {
+                let v: Vec<f64> = (0..p.label.len())
+                    .filter(|&i| p.label[i] == l)
+                    .flat_map(|i| [p.vx[i], p.vy[i]])
+                    .collect();
+                (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+            })
+            .collect())
+    };
+    let off = spread(0.0)?;
+    let on = spread(0.2)?;
+    for (s, want) in off
+        .iter()
+        .zip([0.5, 0.5, 0.5])
+        .chain(on.iter().zip([0.5, 10.0, 0.5]))
+    {
+        assert!((s / want - 1.0).abs() < 0.05, "{off:?} {on:?}");
+    }
+    let bad = PhdConfig {
+        birth_speed_box_fraction: -0.1,
+        ..PhdConfig::default()
+    };
+    let e = bad.validate().expect_err("negative fraction").to_string();
+    assert!(e.contains("birth_speed_box_fraction"), "{e}");
     Ok(())
 }
 

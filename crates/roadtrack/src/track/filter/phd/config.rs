@@ -51,6 +51,14 @@ pub struct PhdConfig {
     // the filter discover the direction (vehicles 5–15 px/frame at 10 fps in the paper's
     // scenes, pedestrians 1–3).
     pub birth_speed_sigma: f64,
+    /// With detections: a birth's velocity standard deviation is at least this fraction of
+    /// its detection box's longer side, px/frame per px. Default 0 (`birth_speed_sigma`
+    /// alone).
+    // Choice: an object's speed in px/frame scales with its size in px, whatever the
+    // camera: a car at 10 m/s is 0.22 of its 4.5 m length a frame at 10 fps, a walker at
+    // 1.3 m/s 0.33 of their 0.4 m, so one fraction serves a 1 px dot and a 15 px car seen
+    // from above (docs/FILTERS.md "Seen from above").
+    pub birth_speed_box_fraction: f64,
     /// Step d) for labelled particles. Default [`LabelUpdate::Phd`] (the paper).
     // Choice: the paper's PHD form stays the default on images (METHODS.md §3 d); the
     // Bernoulli form is the project's fix for the count lost at missed detections
@@ -129,6 +137,7 @@ impl Default for PhdConfig {
             birth_rate: 2.0,
             birth_grid_points: 140,
             birth_speed_sigma: 3.0,
+            birth_speed_box_fraction: 0.0,
             label_update: LabelUpdate::Phd,
             clutter_intensity: 0.1,
             likelihood_threshold: 0.05,
@@ -219,6 +228,7 @@ impl PhdConfig {
         self.motion.validate(c)?;
         nonneg(self.birth_rate, "birth_rate")?;
         nonneg(self.birth_speed_sigma, "birth_speed_sigma")?;
+        nonneg(self.birth_speed_box_fraction, "birth_speed_box_fraction")?;
         pos(self.clutter_intensity, "clutter_intensity")?;
         nonneg(self.border_margin, "border_margin")?;
         if self.exit_speed.is_nan() || self.exit_speed < 0.0 {

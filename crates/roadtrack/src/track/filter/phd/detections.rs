@@ -64,22 +64,33 @@ impl LabelledPhd {
     /// (Gaussian with the measurement's `σ`), each point's particles under a fresh label,
     /// velocities from the birth prior, importance-weighted so that the birth intensity
     /// stays `μ_Γ` uniform over the region: `w = (μ_Γ / A) / (n · Σ_j N(x; z_j, σ_j²))`.
-    /// Returns the new labels in the order of `points`.
+    /// `sides[j]`: the longer side of point `j`'s box, px (0 without one), which with
+    /// [`super::PhdConfig::birth_speed_box_fraction`] widens its velocity prior; missing
+    /// entries count as 0. Returns the new labels in the order of `points`.
     // Choice: each detection that no label explains proposes one labelled birth (adaptive
     // births of labelled RFS filters, Reuter et al. 2014) instead of unlabelled particles
     // that the mesh rule labels later: with pedestrians 10–20 px apart a mesh cell (or a
     // merge distance) that fits one person does not exist, and the Bernoulli update then
     // decides existence per birth (≈ μ_Γ·p_D / (λ_c + μ_Γ·p_D) at the first detection).
-    pub fn add_labelled_births(&mut self, points: &[BoxMeasurement], per_point: usize) -> Vec<u32> {
+    pub fn add_labelled_births(
+        &mut self,
+        points: &[BoxMeasurement],
+        sides: &[f64],
+        per_point: usize,
+    ) -> Vec<u32> {
         let mu = self.config().birth_rate;
         if points.is_empty() || per_point == 0 || mu <= 0.0 {
             return Vec::new();
         }
         let per_point = self.births_per_point(per_point, points.len());
-        let s = self.config().birth_speed_sigma;
+        let (s0, k) = (
+            self.config().birth_speed_sigma,
+            self.config().birth_speed_box_fraction,
+        );
         let (region, area) = (self.region(), self.region().area());
         let mut labels = Vec::with_capacity(points.len());
-        for z in points {
+        for (j, z) in points.iter().enumerate() {
+            let s = s0.max(k * sides.get(j).copied().unwrap_or(0.0));
             let label = self.new_label();
             labels.push(label);
             for _ in 0..per_point {

@@ -239,6 +239,10 @@ impl PhdTracker {
             .collect();
         let born = filter.add_labelled_births(
             &free.iter().map(|&j| measurements[j]).collect::<Vec<_>>(),
+            &free
+                .iter()
+                .map(|&j| sizes.get(j).map_or(0.0, |s| s.x.max(s.y)))
+                .collect::<Vec<_>>(),
             per_point,
         );
         if model.occlusion_full_visibility > 0.0 {
