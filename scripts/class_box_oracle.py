@@ -10,10 +10,15 @@ the input: the difference is what the boxes of that class cost.
 
 --class: the truth's MOT17 class (1 pedestrian, 3 car, 5 motorcycle, 6 lorry or bus);
 --max-visibility: only truth boxes less visible than this (e.g. 0.5: the occluded ones).
-Not part of the test suite; needs only Python 3.
+Not part of the test suite; needs only Python 3 (and scripts/detection_compare.py beside it).
 """
 import argparse
+import os
+import sys
 from collections import defaultdict
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from detection_compare import iou  # noqa: E402
 
 
 def read_gt(path):
@@ -25,14 +30,6 @@ def read_gt(path):
                 continue
             gt[int(c[0])].append((tuple(map(float, c[2:6])), int(c[7]), float(c[8])))
     return gt
-
-
-def iou(a, b):
-    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    union = a[2] * a[3] + b[2] * b[3] - inter
-    return inter / union if union > 0 else 0.0
 
 
 def main():

@@ -33,6 +33,13 @@ fn simulate(dir: &Path, scene: SceneKind, view: ViewKind, frames: u32) {
     roadtrack_sim::simulate(&cfg, 5, dir, &mut |_, _| {}).expect("simulate");
 }
 
+/// `configs/NAME`, the committed settings file.
+fn committed_config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../configs")
+        .join(name)
+}
+
 #[test]
 fn relaxation_tracks_simulated_road_with_ground_speeds_and_good_scores() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -429,7 +436,7 @@ fn relaxation_video_config_beats_the_defaults_on_public_detections() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Road, ViewKind::Aerial, 80);
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/relaxation-video.toml");
+    let config = committed_config("relaxation-video.toml");
     let run = |extra: &[&std::ffi::OsStr], out: &Path| {
         let o = bin()
             .arg("track")
@@ -525,22 +532,19 @@ fn link_gaps_joins_broken_tracks_deterministically() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 100);
-    let config =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/filters-pedestrians.toml");
+    let config = committed_config("filters-pedestrians.toml");
     let run = |link: &str, threads: &str| {
+        let args = ["--method", "phd", "--detector", "file", "--config"]
+            .map(OsStr::new)
+            .into_iter()
+            .chain([
+                config.as_os_str(),
+                OsStr::new("--link-gaps"),
+                OsStr::new(link),
+            ])
+            .collect::<Vec<_>>();
         let out = dir.path().join(format!("phd-{link}-{threads}.txt"));
-        let o = bin()
-            .env("RAYON_NUM_THREADS", threads)
-            .arg("track")
-            .arg(&seq)
-            .args(["--method", "phd", "--detector", "file", "-q", "--config"])
-            .arg(&config)
-            .args(["--link-gaps", link, "-o"])
-            .arg(&out)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
-        out
+        track_ok(&seq, &args, threads, out)
     };
     let ids = |p: &Path| {
         let t = roadtrack::io::mot::read_tracks(p).expect("tracks");
@@ -580,7 +584,7 @@ fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Road, ViewKind::Aerial, 100);
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/relaxation-video.toml");
+    let config = committed_config("relaxation-video.toml");
     let run = |extra: &[&str], threads: &str, name: &str| {
         let mut args: Vec<&OsStr> = ["--method", "relaxation", "--detector", "file", "--config"]
             .map(OsStr::new)
@@ -702,7 +706,7 @@ fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
     let dots = truth_dots(&seq, 0.0, dir.path().join("dots.csv"));
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/mrf-aerial.toml");
+    let config = committed_config("mrf-aerial.toml");
     let run = |extra: &[&str], name: &str| {
         let mut args: Vec<&OsStr> = ["--method", "mrf", "--detector", "file", "--detections"]
             .map(OsStr::new)
@@ -756,9 +760,8 @@ fn the_aerial_phd_file_tracks_dots_the_pedestrians_file_mixes_up() {
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
     let dots = truth_dots(&seq, 0.25, dir.path().join("dots.csv"));
-    let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
     let run = |file: &str, threads: &str| {
-        let config = configs.join(file);
+        let config = committed_config(file);
         let args = [
             OsStr::new("--method"),
             OsStr::new("phd"),
