@@ -34,6 +34,18 @@ impl Table {
         if headers.is_empty() || (headers.len() == 1 && headers[0].is_empty()) {
             return Err(Error::format(path, "empty file: expected a header row"));
         }
+        // Choice: no column of any roadtrack CSV is named by a number, so a first row of
+        // numbers is data: the file has no header (most often MOTChallenge rows, such as
+        // `track -o`'s tracks or a det.txt, saved under a `.csv` name).
+        if headers.iter().all(|h| h.parse::<f64>().is_ok()) {
+            return Err(Error::format(
+                path,
+                "line 1 is numbers, not column names: this CSV has no header row. \
+                 MOTChallenge rows (`track -o`, det.txt, gt.txt) have none; give them a name \
+                 not ending in `.csv` (e.g. tracks.txt), or write the CSV form \
+                 (`track --trajectories F.csv`, `detect -o F.csv`)",
+            ));
+        }
         let mut columns = HashMap::new();
         for (i, h) in headers.iter().enumerate() {
             let key = h.trim_start_matches('\u{feff}').to_ascii_lowercase();
@@ -229,7 +241,27 @@ pub fn num(x: f64, decimals: usize) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    use super::{Table, num};
+
+    #[test]
+    fn a_first_row_of_numbers_is_refused_as_a_missing_header() {
+        let dir = tempfile::tempdir().unwrap();
+        let mot = dir.path().join("tracks.csv");
+        std::fs::write(&mot, "2,1,285.166,242.728,15.897,5.563,0.96,-1,-1,-1\n").unwrap();
+        let e = Table::open(&mot)
+            .err()
+            .expect("a headerless file must be refused");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("tracks.csv") && msg.contains("no header row"),
+            "{msg}"
+        );
+        assert!(msg.contains("line 1"), "names line 1: {msg}");
+        // One named column is enough to be a header.
+        let ok = dir.path().join("ok.csv");
+        std::fs::write(&ok, "frame,1,2\n3,4,5\n").unwrap();
+        assert!(Table::open(&ok).is_ok());
+    }
 
     #[test]
     fn numbers_are_short_and_exact_to_the_decimals() {
