@@ -180,6 +180,23 @@ pub fn folder_output(s: &str) -> std::result::Result<PathBuf, String> {
     )
 }
 
+/// A MOTChallenge tracks output (`track -o`): any name but one ending in `.csv`, which every
+/// reader takes for a trajectories CSV with a header; `-` is standard output.
+pub fn mot_output(s: &str) -> std::result::Result<PathBuf, String> {
+    if std::path::Path::new(s)
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+    {
+        return Err(
+            "-o writes MOTChallenge rows without a header, which roadtrack reads back \
+                    only from a name not ending in .csv (e.g. tracks.txt); for the CSV with a \
+                    header, frame times and classes, give --trajectories F.csv"
+                .to_owned(),
+        );
+    }
+    Ok(PathBuf::from(s))
+}
+
 /// As [`folder_output`], for `render`'s frames (a folder of PNG files or a video file).
 pub fn frames_output(s: &str) -> std::result::Result<PathBuf, String> {
     not_stdout(

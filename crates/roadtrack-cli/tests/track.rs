@@ -194,6 +194,17 @@ fn geojson_without_calibration_is_a_usage_error() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+#[test]
+fn mot_tracks_under_a_csv_name_are_a_usage_error_that_points_to_trajectories() {
+    let o = bin()
+        .args(["track", "x", "--method", "mrf", "-o", "tracks.CSV"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--trajectories"), "{err}");
+}
+
 #[cfg(feature = "cnn")]
 const TINY_CNN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

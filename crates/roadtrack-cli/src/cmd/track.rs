@@ -61,7 +61,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub method: Method,
     /// MOTChallenge tracks output (`-` for standard output).
-    #[arg(short, long, default_value = "tracks.txt")]
+    #[arg(short, long, default_value = "tracks.txt", value_parser = crate::common::mot_output)]
     pub output: PathBuf,
     /// Also write the trajectories CSV here.
     #[arg(long, value_name = "F.csv")]
