@@ -552,9 +552,19 @@ impl DetectorArgs {
 
 /// The `--detector onnx` flags are usage errors with another detector.
 fn reject_onnx_flags(onnx: &crate::onnx_detector::OnnxArgs) -> Result<()> {
-    let mut given = onnx.given();
-    given.push(("--detector-model", onnx.detector_model.is_some()));
-    crate::flags::reject_given(&given, "only with --detector onnx")
+    let not_cnn = onnx.given_not_cnn();
+    let (both, cnn): (Vec<_>, Vec<_>) = onnx
+        .given()
+        .into_iter()
+        .filter(|g| !not_cnn.contains(g))
+        .partition(|(f, _)| matches!(*f, "--min-score" | "--iou-threshold"));
+    let mut both = both;
+    both.push(("--detector-model", onnx.detector_model.is_some()));
+    // Each flag named with the detectors that take it (`--zoom-small` is the learned
+    // detector's alone).
+    crate::flags::reject_given(&not_cnn, "only with --detector onnx")?;
+    crate::flags::reject_given(&cnn, "only with --detector cnn")?;
+    crate::flags::reject_given(&both, "only with --detector onnx or cnn")
 }
 
 /// The detector's name as `--detector` spells it (`file` for `--detections F` alone).

@@ -98,6 +98,14 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         .find(|f| args.contains(f))
         .expect("a flag");
         assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
+        // A learned-detector flag beside another detector names the detector that takes it.
+        if args.contains(&"background") && flag != "--calibration" {
+            assert!(
+                stderr(&o).contains(&format!("{flag}: only with --detector cnn")),
+                "{args:?}: {}",
+                stderr(&o)
+            );
+        }
     }
 }
 

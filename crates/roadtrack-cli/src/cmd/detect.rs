@@ -67,7 +67,9 @@ pub struct Args {
 pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     if args.model.is_some() {
         if !args.detector.is_onnx() {
-            return Err(crate::flags::conflict("--model: only with --detector onnx"));
+            return Err(crate::flags::conflict(
+                "--model: only with --detector onnx or cnn",
+            ));
         }
         args.detector.onnx.detector_model = args.model.take();
     }
