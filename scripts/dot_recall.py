@@ -8,7 +8,9 @@ pixel, the centre distance says whether they are found at all; docs/DETECTION.md
     roadtrack detect SEQ --detector cnn --dots --calibration SEQ/calibration.toml -o D.csv
     python3 scripts/dot_recall.py SEQ D.csv
 
-Truth: gt.txt rows of class 1 (pedestrian) with visibility >= --min-visibility.
+Truth: gt.txt rows of class 1 (pedestrian) with visibility >= --min-visibility. Also
+prints how much the dots' centres lock to pixel centres (docs/EXPERIMENTS.md "What holds
+the scenes under 0.6").
 Detections: the CSV's rows of class "pedestrian". Needs numpy and scipy.
 """
 import argparse
@@ -32,6 +34,7 @@ def main():
     det = np.array([[float(r["frame"]), float(r["x"]), float(r["y"])] for r in rows]).reshape(-1, 3)
     found = 0
     dist = []
+    phase, err = [], []  # per matched pair: truth centre's offset from its pixel's centre, error
     for t in np.unique(walkers[:, 0]):
         g = walkers[walkers[:, 0] == t]
         d = det[det[:, 0] == t]
@@ -43,11 +46,20 @@ def main():
         ok = cost[r, c] < a.radius
         found += int(ok.sum())
         dist.extend(cost[r, c][ok])
+        t, e = centres[r[ok]], d[c[ok], 1:] - centres[r[ok]]
+        phase.extend(t - 0.5 - np.round(t - 0.5))
+        err.extend(e)
     recall = found / max(len(walkers), 1)
     precision = found / max(len(det), 1)
     median = float(np.median(dist)) if dist else float("nan")
     print(f"walkers {len(walkers)} dots {len(det)} recall {recall:.3f} precision {precision:.3f} "
           f"median centre error {median:.2f} px")
+    if len(err) > 2:
+        # Pixel locking: the slope of the error against the truth centre's offset from the
+        # centre of its pixel, per axis; -1 = every dot at a pixel centre, 0 = none.
+        ph, er = np.array(phase), np.array(err)
+        slopes = [np.polyfit(ph[:, k], er[:, k], 1)[0] for k in (0, 1)]
+        print(f"pixel locking: slope x {slopes[0]:.2f}, y {slopes[1]:.2f}")
 
 
 if __name__ == "__main__":
