@@ -185,24 +185,24 @@ fn mrf_reports_objects_at_the_detectors_boxes_unless_as_published() {
     );
 }
 
+/// Usage errors found before any input is read: exit 2, the message naming what to give.
 #[test]
-fn geojson_without_calibration_is_a_usage_error() {
-    let o = bin()
-        .args(["track", "x", "--method", "mrf", "--geojson", "g.json"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2));
-}
-
-#[test]
-fn mot_tracks_under_a_csv_name_are_a_usage_error_that_points_to_trajectories() {
-    let o = bin()
-        .args(["track", "x", "--method", "mrf", "-o", "tracks.CSV"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("--trajectories"), "{err}");
+fn usage_errors_name_what_to_give() {
+    for (args, says) in [
+        // No ground without a calibration.
+        (&["--geojson", "g.json"][..], "--calibration"),
+        // MOTChallenge rows under a .csv name could not be read back.
+        (&["-o", "tracks.CSV"][..], "--trajectories"),
+    ] {
+        let o = bin()
+            .args(["track", "x", "--method", "mrf"])
+            .args(args)
+            .output()
+            .expect("run");
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }
 
 #[cfg(feature = "cnn")]
