@@ -553,12 +553,11 @@ impl DetectorArgs {
 /// The `--detector onnx` flags are usage errors with another detector.
 fn reject_onnx_flags(onnx: &crate::onnx_detector::OnnxArgs) -> Result<()> {
     let not_cnn = onnx.given_not_cnn();
-    let (both, cnn): (Vec<_>, Vec<_>) = onnx
+    let (mut both, cnn): (Vec<_>, Vec<_>) = onnx
         .given()
         .into_iter()
         .filter(|g| !not_cnn.contains(g))
         .partition(|(f, _)| matches!(*f, "--min-score" | "--iou-threshold"));
-    let mut both = both;
     both.push(("--detector-model", onnx.detector_model.is_some()));
     // Each flag named with the detectors that take it (`--zoom-small` is the learned
     // detector's alone).
