@@ -708,29 +708,59 @@ fn truth_dots(seq: &Path, jitter: f64, out: PathBuf) -> PathBuf {
     out
 }
 
+/// A 60-frame simulated aerial crossing in a temporary folder and its walkers as
+/// [`truth_dots`] with `jitter`; `run(method, config, extra flags, threads, name)` tracks
+/// those dots with `configs/<config>` and returns the tracks file.
+struct DotsCrossing {
+    dir: tempfile::TempDir,
+    seq: PathBuf,
+    dots: PathBuf,
+}
+
+impl DotsCrossing {
+    fn new(jitter: f64) -> Self {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let seq = dir.path().join("seq");
+        simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
+        let dots = truth_dots(&seq, jitter, dir.path().join("dots.csv"));
+        Self { dir, seq, dots }
+    }
+
+    fn run(
+        &self,
+        method: &str,
+        config: &str,
+        extra: &[&str],
+        threads: &str,
+        name: &str,
+    ) -> PathBuf {
+        let config = committed_config(config);
+        let mut args: Vec<&OsStr> = ["--method", method, "--detector", "file", "--detections"]
+            .map(OsStr::new)
+            .to_vec();
+        args.extend([
+            self.dots.as_os_str(),
+            OsStr::new("--config"),
+            config.as_os_str(),
+        ]);
+        args.extend(extra.iter().map(OsStr::new));
+        track_ok(&self.seq, &args, threads, self.dir.path().join(name))
+    }
+}
+
 /// `--orient-walkers`: walkers seen from above detected as squares (the truth's boxes of the
 /// aerial crossing, each turned into the square of its area, as `--dots` boxes them) get
 /// back the shape of their footprint from their motion, so their boxes fit the truth's.
 #[test]
 fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let seq = dir.path().join("seq");
-    simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
-    let dots = truth_dots(&seq, 0.0, dir.path().join("dots.csv"));
-    let config = committed_config("mrf-aerial.toml");
-    let run = |extra: &[&str], name: &str| {
-        let mut args: Vec<&OsStr> = ["--method", "mrf", "--detector", "file", "--detections"]
-            .map(OsStr::new)
-            .to_vec();
-        args.extend([dots.as_os_str(), OsStr::new("--config"), config.as_os_str()]);
-        args.extend(extra.iter().map(OsStr::new));
-        track_ok(&seq, &args, "2", dir.path().join(name))
-    };
+    let c = DotsCrossing::new(0.0);
+    let run = |extra: &[&str], name: &str| c.run("mrf", "mrf-aerial.toml", extra, "2", name);
     let (square, turned) = (
         run(&[], "square.txt"),
         run(&["--orient-walkers"], "turned.txt"),
     );
-    let ((h0, _), (h1, _)) = (hota_idf1(&seq, &square), hota_idf1(&seq, &turned));
+    let seq = &c.seq;
+    let ((h0, _), (h1, _)) = (hota_idf1(seq, &square), hota_idf1(seq, &turned));
     // Measured 0.58 -> 0.83 (the same sequence is `roadtrack simulate --scene crossing
     // --view aerial --frames 60 --seed 5`).
     assert!(h1 > h0 + 0.1, "HOTA {h0} -> {h1}");
@@ -767,32 +797,14 @@ fn orient_walkers_gives_dots_the_shape_of_their_footprint() {
 /// and two threads.
 #[test]
 fn the_aerial_phd_file_tracks_dots_the_pedestrians_file_mixes_up() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let seq = dir.path().join("seq");
-    simulate(&seq, SceneKind::Crossing, ViewKind::Aerial, 60);
-    let dots = truth_dots(&seq, 0.25, dir.path().join("dots.csv"));
+    let c = DotsCrossing::new(0.25);
     let run = |file: &str, threads: &str| {
-        let config = committed_config(file);
-        let args = [
-            OsStr::new("--method"),
-            OsStr::new("phd"),
-            OsStr::new("--detector"),
-            OsStr::new("file"),
-            OsStr::new("--detections"),
-            dots.as_os_str(),
-            OsStr::new("--config"),
-            config.as_os_str(),
-        ];
-        track_ok(
-            &seq,
-            &args,
-            threads,
-            dir.path().join(format!("{file}.{threads}.txt")),
-        )
+        c.run("phd", file, &[], threads, &format!("{file}.{threads}.txt"))
     };
+    let seq = &c.seq;
     let aerial = run("phd-aerial.toml", "2");
     let people = run("filters-pedestrians.toml", "2");
-    let ((h1, i1), (h0, i0)) = (hota_idf1(&seq, &aerial), hota_idf1(&seq, &people));
+    let ((h1, i1), (h0, i0)) = (hota_idf1(seq, &aerial), hota_idf1(seq, &people));
     // Measured HOTA 0.30 -> 0.56, IDF1 0.43 -> 0.87.
     assert!(
         h1 > h0 + 0.15 && i1 > i0 + 0.25,
