@@ -193,6 +193,8 @@ fn usage_errors_name_what_to_give() {
         (&["--geojson", "g.json"][..], "--calibration"),
         // MOTChallenge rows under a .csv name could not be read back.
         (&["-o", "tracks.CSV"][..], "--trajectories"),
+        // The MRF has no count of its own.
+        (&["--counts", "c.csv"][..], "only for --method pf and phd"),
     ] {
         let o = bin()
             .args(["track", "x", "--method", "mrf"])
@@ -531,6 +533,69 @@ fn filters_weigh_particles_by_the_detections_and_refuse_bad_settings() {
     let e = stderr(&o);
     assert!(
         e.contains("detections.detection_prob") && e.contains("bad.toml"),
+        "{e}"
+    );
+}
+
+/// `--counts`: one row per frame for the filters, the detections column the sequence's
+/// own, the PHD's smoothed count beside its filtered one; a bad look-ahead exits 1 naming
+/// the field.
+#[test]
+fn the_filters_write_their_counts_per_frame() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let seq = dir.path().join("seq");
+    simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 30);
+    let det = roadtrack::io::mot::read_detections(&seq.join("det/det.txt")).expect("det");
+    for method in ["pf", "phd"] {
+        let counts = dir.path().join(format!("{method}.csv"));
+        let o = bin()
+            .arg("track")
+            .arg(&seq)
+            .args(["--method", method, "--detector", "file", "-q", "-o"])
+            .arg(dir.path().join(format!("{method}.txt")))
+            .arg("--counts")
+            .arg(&counts)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&counts).expect("counts");
+        let mut lines = text.lines();
+        assert_eq!(
+            lines.next(),
+            Some(
+                "frame,expected,most_probable,smoothed,smoothed_most_probable,reported,detections"
+            )
+        );
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
+            .collect();
+        assert_eq!(rows.len(), 30, "{method}");
+        let mut differ = 0;
+        for (k, r) in rows.iter().enumerate() {
+            assert_eq!(r[0], (k + 1) as f64, "{method}: frame");
+            let in_frame = det.iter().filter(|d| d.frame as usize == k + 1).count();
+            assert_eq!(r[6], in_frame as f64, "{method}: frame {}", k + 1);
+            assert!(r.iter().all(|v| v.is_finite() && *v >= 0.0), "{r:?}");
+            differ += usize::from(r[3] != r[1]);
+        }
+        // The PF counts its objects; the PHD's smoothing moves most frames' count.
+        if method == "pf" {
+            assert_eq!(differ, 0);
+        } else {
+            assert!(differ > 20, "{differ} of 30 frames smoothed");
+        }
+    }
+    let cfg = dir.path().join("lag.toml");
+    std::fs::write(&cfg, "count_lag_frames = 1000\n").expect("write");
+    let o = bin()
+        .args(["track", "x", "--method", "phd", "--config"])
+        .arg(&cfg)
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("count_lag_frames") && e.contains("lag.toml"),
         "{e}"
     );
 }

@@ -97,6 +97,11 @@ pub const MAX_PAIRS: u32 = 100_000;
 // Choice: the paper uses 70–100; 100 000 is a thousand times that (≈ 5 MB per object).
 pub const MAX_PARTICLES_PER_OBJECT: usize = 100_000;
 
+/// The most frames of look-ahead of the PHD's smoothed count
+/// (`FilterTrackConfig::count_lag_frames`).
+// Choice: 100 frames (10 s at 10 frames/s); each frame held keeps every label's weight.
+pub const MAX_COUNT_LAG_FRAMES: u32 = 100;
+
 /// The largest total particle cap (`PhdConfig::max_particles`) and birth grid.
 // Choice: 1 000 000 particles are ≈ 50 MB of state; the default cap is 20 000.
 pub const MAX_PARTICLES: usize = 1_000_000;

@@ -10,7 +10,9 @@ use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::frame::Frame;
 use roadtrack::io::source;
 use roadtrack::track::confirm::LifecycleStage;
-use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, Measurements};
+use roadtrack::track::filter::{
+    FilterMethod, FilterTrackConfig, FilterTracker, FrameCount, Measurements,
+};
 use roadtrack::track::link::GapLinkStage;
 use roadtrack::track::method::BuiltTracker;
 use roadtrack::track::mrf::object_map::BLOCK_PX;
@@ -23,7 +25,7 @@ use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The likelihood h(y | x) of pf and phd.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -116,6 +118,11 @@ pub struct Args {
     /// times this).
     #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub window_scale: Option<f64>,
+    /// pf/phd: write the number of objects per frame here (CSV: the filter's count, its
+    /// mode, the count smoothed over the next frames, its mode, tracks reported,
+    /// detections).
+    #[arg(long, value_name = "F.csv")]
+    pub counts: Option<PathBuf>,
     /// MRF: write the Object-map of every frame as PNG plus object_maps.csv into this folder.
     #[arg(long, value_name = "DIR", value_parser = crate::common::folder_output)]
     pub object_maps: Option<PathBuf>,
@@ -161,6 +168,7 @@ fn check_method_flags(args: &Args) -> Result<()> {
                 ),
                 ("--dense-stride", args.dense_stride.is_some()),
                 ("--window-scale", args.window_scale.is_some()),
+                ("--counts", args.counts.is_some()),
             ],
             "only for --method pf and phd",
         )?;
@@ -327,11 +335,16 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         .spec(&args.input, calibration.as_ref(), || Ok(own))?;
     let info = source::open(&args.input, &options)?.info.clone();
     let built = method.build(&args.input, &options, &info, detector)?;
-    let tracker: Box<dyn Tracker> = match (built.tracker, &args.object_maps) {
+    let mut filter: Option<Box<FilterTracker>> = None;
+    let tracker: Box<dyn Tracker + '_> = match (built.tracker, &args.object_maps) {
         (BuiltTracker::Mrf(mrf), Some(dir)) => Box::new(ObjectMapDump {
             mrf,
             dump: Some(MapDump::new(dir)?),
         }),
+        (BuiltTracker::Filter(mut f), _) if args.counts.is_some() => {
+            f.record_counts();
+            Box::new(filter.insert(f).as_mut())
+        }
         (t, _) => t.boxed(),
     };
     let mut stages: Vec<Box<dyn PointStage + '_>> = Vec::new();
@@ -383,6 +396,15 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         .run(frames, total, &mut progress)
         .context("tracking")?;
     bar.finish_and_clear();
+    drop(pipeline);
+    if let (Some(path), Some(f)) = (&args.counts, &filter) {
+        write_counts(path, f.counts())?;
+        ui.info(format!(
+            "{} frames' counts → {}",
+            f.counts().len(),
+            path.display()
+        ));
+    }
     ui.info(format!(
         "{} tracks, {} boxes → {}",
         summary.tracks,
@@ -397,6 +419,31 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         Some(&args.output),
     )?;
     Ok(())
+}
+
+/// Writes `--counts`: one row per frame (docs/FORMATS.md "Counts CSV").
+fn write_counts(path: &Path, counts: &[FrameCount]) -> Result<()> {
+    roadtrack::io::atomic::write_atomic(path, |w| {
+        writeln!(
+            w,
+            "frame,expected,most_probable,smoothed,smoothed_most_probable,reported,detections"
+        )?;
+        for c in counts {
+            writeln!(
+                w,
+                "{},{:.4},{},{:.4},{},{},{}",
+                c.frame,
+                c.expected,
+                c.most_probable,
+                c.smoothed,
+                c.smoothed_most_probable,
+                c.reported,
+                c.detections
+            )?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing the counts to {}", path.display()))
 }
 
 /// The MRF tracker writing its Object-map after every frame (`--object-maps DIR`).

@@ -185,6 +185,16 @@ pub struct FilterTrackConfig {
     /// Default true.
     // Choice: the filters estimate a position only; box-based metrics (IoU) need a size.
     pub box_from_detections: bool,
+    /// PHD: frames of look-ahead for the smoothed count ([`super::FrameCount::smoothed`],
+    /// `phd::ExistenceSmoother`): a label's existence at frame t given the frames up to
+    /// t + this. 0 = the filter's own weights. Default 1. The tracks are not affected.
+    // Choice: 1 frame. A label missed once and detected the next frame is an object the
+    // detector missed (the Bernoulli update took it to ≈ 0.8); one not detected again is
+    // mostly a false birth or a person gone behind another, whom the count's truth (people
+    // ≥ 0.3 visible) leaves out. Longer lags also restore people hidden for several
+    // frames, who exist but are not visible (docs/EXPERIMENTS.md "The count smoothed
+    // over the next frame").
+    pub count_lag_frames: u32,
 }
 
 impl Default for FilterTrackConfig {
@@ -203,6 +213,7 @@ impl Default for FilterTrackConfig {
             support_gate_px: 30.0,
             max_frames_without_detection: 20,
             box_from_detections: true,
+            count_lag_frames: 1,
         }
     }
 }
@@ -269,7 +280,7 @@ impl FilterTrackConfig {
                 ));
             }
         }
-        use crate::limits::{MAX_PARTICLES_PER_OBJECT, at_most};
+        use crate::limits::{MAX_COUNT_LAG_FRAMES, MAX_PARTICLES_PER_OBJECT, at_most};
         at_most(
             self.birth_particles_per_detection,
             MAX_PARTICLES_PER_OBJECT,
@@ -283,6 +294,12 @@ impl FilterTrackConfig {
             )
         })
         .map_err(|m| Error::config(c, "birth_particles_per_detection", m))?;
+        at_most(
+            self.count_lag_frames,
+            MAX_COUNT_LAG_FRAMES,
+            "frames of look-ahead",
+        )
+        .map_err(|m| Error::config(c, "count_lag_frames", m))?;
         Ok(())
     }
 

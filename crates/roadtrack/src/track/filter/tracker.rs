@@ -17,7 +17,7 @@ use super::config::{BirthSource, ColourReference, FilterMethod, FilterTrackConfi
 use super::config::{LikelihoodKind, TrackLikelihoodConfig};
 use super::detections::Measurements;
 use super::particle::{LikelihoodFactory, ParticleFilterTracker};
-use super::phd::{FilterStageTimes, PhdTracker};
+use super::phd::{ExistenceSmoother, FilterStageTimes, LabelWeights, PhdTracker};
 use crate::detect::FrameDetections;
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -44,6 +44,13 @@ pub struct FrameCount {
     /// The most probable number of objects ([`crate::track::filter::phd::map_cardinality`]
     /// of the labels' weights); the PF's object count.
     pub most_probable: usize,
+    /// The PHD's count smoothed over the next
+    /// [`FilterTrackConfig::count_lag_frames`] frames: Σ of the labels' existence given
+    /// those frames ([`super::phd::ExistenceSmoother`]); the PF's object count. Filled in
+    /// once the later frames are tracked (at the end of the run for the last ones).
+    pub smoothed: f64,
+    /// The mode of the smoothed existences ([`super::phd::map_cardinality`]).
+    pub smoothed_most_probable: usize,
     /// Tracks reported in the frame.
     pub reported: usize,
     /// Detections in the frame.
@@ -70,6 +77,8 @@ pub struct FilterTracker {
     reference_frames: u32,
     runner: Option<Runner>,
     counts: Option<Vec<FrameCount>>,
+    /// The PHD's count smoother (with [`FilterTracker::record_counts`]).
+    smoother: Option<ExistenceSmoother>,
 }
 
 impl std::fmt::Debug for FilterTracker {
@@ -119,12 +128,32 @@ impl FilterTracker {
             reference_frames: 0,
             runner: None,
             counts: None,
+            smoother: None,
         })
     }
 
     /// Keeps a [`FrameCount`] per frame from now on ([`FilterTracker::counts`]).
     pub fn record_counts(&mut self) {
         self.counts.get_or_insert_with(Vec::new);
+        if self.method == FilterMethod::Phd {
+            let lag = self.cfg.count_lag_frames as usize;
+            self.smoother
+                .get_or_insert_with(|| ExistenceSmoother::new(lag, self.cfg.phd.survival_prob));
+        }
+    }
+
+    /// Records a frame's count, and the smoothed count of the frame the smoother returns.
+    fn push_count(&mut self, count: FrameCount, labels: LabelWeights) {
+        let Some(counts) = self.counts.as_mut() else {
+            return;
+        };
+        counts.push(count);
+        if let Some(s) = self.smoother.as_mut()
+            && let Some(w) = s.push(labels)
+        {
+            let k = counts.len() - 1 - self.cfg.count_lag_frames as usize;
+            set_smoothed(&mut counts[k], &w);
+        }
     }
 
     /// The counts recorded so far (empty unless [`FilterTracker::record_counts`]).
@@ -175,13 +204,15 @@ impl FilterTracker {
             self.shared,
             self.model.take(),
         )?;
-        let r = self.runner.insert(runner);
+        self.runner = Some(runner);
         let mut out = Vec::with_capacity(self.pending.len());
-        for (f, d, m) in self.pending.drain(..) {
-            let (points, count) = r.step(&f, &d, m.as_ref())?;
-            if let Some(c) = self.counts.as_mut() {
-                c.push(count);
-            }
+        let pending = std::mem::take(&mut self.pending);
+        for (f, d, m) in pending {
+            let Some(r) = self.runner.as_mut() else {
+                break;
+            };
+            let (points, count, labels) = r.step(&f, &d, m.as_ref())?;
+            self.push_count(count, labels);
             out.push(FramePoints::new(&f, points));
         }
         Ok(out)
@@ -200,14 +231,12 @@ impl Tracker for FilterTracker {
             )));
         }
         if let Some(r) = self.runner.as_mut() {
-            let (points, count) = r.step(
+            let (points, count, labels) = r.step(
                 frame,
                 &detections.detections,
                 detections.foreground.as_ref(),
             )?;
-            if let Some(c) = self.counts.as_mut() {
-                c.push(count);
-            }
+            self.push_count(count, labels);
             return Ok(vec![FramePoints::new(frame, points)]);
         }
         if !detections.detections.is_empty() {
@@ -228,11 +257,20 @@ impl Tracker for FilterTracker {
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
-        if self.runner.is_none() && !self.pending.is_empty() {
+        let out = if self.runner.is_none() && !self.pending.is_empty() {
             // Fewer frames with detections than `reference_frames`: use what there is.
-            return self.start();
+            self.start()?
+        } else {
+            Vec::new()
+        };
+        if let (Some(s), Some(counts)) = (self.smoother.as_mut(), self.counts.as_mut()) {
+            let rest = s.finish();
+            let first = counts.len() - rest.len();
+            for (c, w) in counts[first..].iter_mut().zip(&rest) {
+                set_smoothed(c, w);
+            }
         }
-        Ok(Vec::new())
+        Ok(out)
     }
 }
 
@@ -340,13 +378,14 @@ impl Runner {
         }
     }
 
-    /// Tracks one frame: its points (sorted by id) and counts.
+    /// Tracks one frame: its points (sorted by id), counts, and every PHD label's weight
+    /// (empty for the PF).
     fn step(
         &mut self,
         frame: &Frame,
         dets: &[Detection],
         mask: Option<&GrayImage>,
-    ) -> Result<(Vec<TrackPoint>, FrameCount)> {
+    ) -> Result<(Vec<TrackPoint>, FrameCount, LabelWeights)> {
         if self.cfg.likelihood.kind != LikelihoodKind::Colour
             && let Some(mask) = mask
         {
@@ -449,11 +488,18 @@ impl Runner {
             }
         };
 
+        let labels: LabelWeights = match &self.filter {
+            Filter::Pf(_) => LabelWeights::new(),
+            Filter::Phd(t) => t.filter().map_or_else(LabelWeights::new, |f| {
+                f.all_estimates()
+                    .iter()
+                    .map(|e| (e.label, e.weight))
+                    .collect()
+            }),
+        };
         let most_probable = match &self.filter {
             Filter::Pf(t) => t.n_objects(),
-            Filter::Phd(t) => t.filter().map_or(0, |f| {
-                super::phd::map_cardinality(f.all_estimates().iter().map(|e| e.weight))
-            }),
+            Filter::Phd(_) => super::phd::map_cardinality(labels.values().copied()),
         };
 
         // Support by detections; end tracks unsupported for too long.
@@ -478,15 +524,24 @@ impl Runner {
         if let Filter::Pf(_) = self.filter {
             self.last_pf = points.iter().map(|p| p.bbox.centre()).collect();
         }
+        // Until the smoother fills them in (the PF's stay): the filter's own counts.
         let count = FrameCount {
             frame: frame.index,
             expected,
             most_probable,
+            smoothed: expected,
+            smoothed_most_probable: most_probable,
             reported: points.len(),
             detections: dets.len(),
         };
-        Ok((points, count))
+        Ok((points, count, labels))
     }
+}
+
+/// Sets a frame's smoothed count from its labels' smoothed weights.
+fn set_smoothed(count: &mut FrameCount, weights: &[f64]) {
+    count.smoothed = weights.iter().sum();
+    count.smoothed_most_probable = super::phd::map_cardinality(weights.iter().copied());
 }
 
 /// The detections whose centre is finite (the measurements).

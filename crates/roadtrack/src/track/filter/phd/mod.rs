@@ -21,7 +21,7 @@
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
 //! `detections.rs` (step d with detections as measurements), `association.rs` (the same
 //! with a detection explaining at most one label), `occlusion.rs` (a lower `p_D` for
-//! labels hidden behind others),
+//! labels hidden behind others), `smoother.rs` (the count smoothed over the next frames),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod association;
@@ -30,6 +30,7 @@ mod config;
 mod detections;
 mod labelled;
 mod occlusion;
+mod smoother;
 #[cfg(test)]
 mod tests;
 mod tracker;
@@ -43,6 +44,7 @@ pub use labelled::LabelledPhd;
 #[cfg(test)]
 use labelled::kmeans;
 pub use occlusion::{LabelBox, occluded_pd, visible_fractions};
+pub use smoother::{ExistenceSmoother, LabelWeights, smoothed_existence};
 pub use tracker::PhdTracker;
 
 use crate::error::Result;
