@@ -585,6 +585,21 @@ fn the_filters_write_their_counts_per_frame() {
             assert!(differ > 20, "{differ} of 30 frames smoothed");
         }
     }
+    // A path that cannot take the counts fails before the run, and writes no tracks.
+    let tracks = dir.path().join("never.txt");
+    let o = bin()
+        .arg("track")
+        .arg(&seq)
+        .args(["--method", "phd", "--detector", "file", "-q", "-o"])
+        .arg(&tracks)
+        .arg("--counts")
+        .arg(dir.path())
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("--counts") && e.contains("is a folder"), "{e}");
+    assert!(!tracks.exists());
     let cfg = dir.path().join("lag.toml");
     std::fs::write(&cfg, "count_lag_frames = 1000\n").expect("write");
     let o = bin()

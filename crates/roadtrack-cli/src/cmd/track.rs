@@ -8,6 +8,7 @@ use roadtrack::calibration::Calibration;
 use roadtrack::detect::FrameDetections;
 use roadtrack::detect::background::BackgroundDetectorConfig;
 use roadtrack::frame::Frame;
+use roadtrack::io::atomic::AtomicFile;
 use roadtrack::io::source;
 use roadtrack::track::confirm::LifecycleStage;
 use roadtrack::track::filter::{
@@ -25,7 +26,8 @@ use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
-use std::path::{Path, PathBuf};
+use std::io::Write;
+use std::path::PathBuf;
 
 /// The likelihood h(y | x) of pf and phd.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -335,6 +337,13 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         .spec(&args.input, calibration.as_ref(), || Ok(own))?;
     let info = source::open(&args.input, &options)?.info.clone();
     let built = method.build(&args.input, &options, &info, detector)?;
+    // Opened before the run, so that a path that cannot be written fails at once.
+    let counts_out = args
+        .counts
+        .as_deref()
+        .map(AtomicFile::create)
+        .transpose()
+        .context("--counts")?;
     let mut filter: Option<Box<FilterTracker>> = None;
     let tracker: Box<dyn Tracker + '_> = match (built.tracker, &args.object_maps) {
         (BuiltTracker::Mrf(mrf), Some(dir)) => Box::new(ObjectMapDump {
@@ -397,8 +406,10 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         .context("tracking")?;
     bar.finish_and_clear();
     drop(pipeline);
-    if let (Some(path), Some(f)) = (&args.counts, &filter) {
-        write_counts(path, f.counts())?;
+    if let (Some(out), Some(f)) = (counts_out, &filter) {
+        let path = out.path().to_owned();
+        write_counts(out, f.counts())
+            .with_context(|| format!("writing the counts to {}", path.display()))?;
         ui.info(format!(
             "{} frames' counts → {}",
             f.counts().len(),
@@ -422,15 +433,16 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
 }
 
 /// Writes `--counts`: one row per frame (docs/FORMATS.md "Counts CSV").
-fn write_counts(path: &Path, counts: &[FrameCount]) -> Result<()> {
-    roadtrack::io::atomic::write_atomic(path, |w| {
+fn write_counts(mut out: AtomicFile, counts: &[FrameCount]) -> roadtrack::Result<()> {
+    let path = out.path().to_owned();
+    let mut write = || -> std::io::Result<()> {
         writeln!(
-            w,
+            out,
             "frame,expected,most_probable,smoothed,smoothed_most_probable,reported,detections"
         )?;
         for c in counts {
             writeln!(
-                w,
+                out,
                 "{},{:.4},{},{:.4},{},{},{}",
                 c.frame,
                 c.expected,
@@ -442,8 +454,9 @@ fn write_counts(path: &Path, counts: &[FrameCount]) -> Result<()> {
             )?;
         }
         Ok(())
-    })
-    .with_context(|| format!("writing the counts to {}", path.display()))
+    };
+    write().map_err(|e| roadtrack::Error::io(&path, e))?;
+    out.commit()
 }
 
 /// The MRF tracker writing its Object-map after every frame (`--object-maps DIR`).
