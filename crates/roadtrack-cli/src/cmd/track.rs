@@ -56,7 +56,7 @@ impl LikelihoodArg {
 /// and speeds when a calibration is given) and GeoJSON.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method phd --likelihood cnn --model person.onnx --dense-stride 8 -o phd_cnn.txt\n  roadtrack track ../shared/data/vtest.avi --method phd --likelihood ssd -o phd_ssd.txt\n  roadtrack track seq/ --method relaxation --detector onnx --model rtdetr.onnx --resize stretch -o tracks.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
+    after_help = "Example:\n  roadtrack track ../shared/data/vtest.avi --method mrf -o tracks.txt --trajectories traj.csv\n  roadtrack track seq/ --method phd --seed 1 -o phd.txt\n  roadtrack track seq/ --method phd --config configs/filters-pedestrians.toml --detector file --counts counts.csv\n  roadtrack track seq/ --method phd --likelihood cnn --model person.onnx --dense-stride 8 -o phd_cnn.txt\n  roadtrack track ../shared/data/vtest.avi --method phd --likelihood ssd -o phd_ssd.txt\n  roadtrack track seq/ --method relaxation --detector onnx --model rtdetr.onnx --resize stretch -o tracks.txt\n  roadtrack track seq/ --method relaxation --calibration seq/calibration.toml --trajectories traj.csv --geojson traj.geojson"
 )]
 pub struct Args {
     /// Video file, folder of numbered images, or MOTChallenge sequence folder.
