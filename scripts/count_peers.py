@@ -12,8 +12,7 @@ det/det.txt, then prints the mean |count - truth| per frame, the truth being the
 the simulated detector can see (truth.csv visibility >= 0.3, the image border not
 counted, as the library's count experiment scores them). Counts: the detections in the
 frame; norfair's tracks in the frame; the PHD's Σw and its mode; both smoothed over the
-next frame; the visible objects from the labels' detection histories and their mode; the
-PHD's tracks written before the life-cycle stages.
+next frame; the PHD's tracks written before the life-cycle stages.
 
 Not part of the test suite; needs `pip install norfair`.
 """
@@ -35,8 +34,6 @@ COLUMNS = [
     ("PHD mode", "most_probable"),
     ("PHD Σw smoothed", "smoothed"),
     ("PHD mode smoothed", "smoothed_most_probable"),
-    ("PHD visible", "visible"),
-    ("PHD visible mode", "visible_most_probable"),
     ("PHD tracks", "reported"),
 ]
 

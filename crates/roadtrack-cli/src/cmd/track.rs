@@ -121,8 +121,7 @@ pub struct Args {
     #[arg(long, value_name = "S", value_parser = crate::flags::positive)]
     pub window_scale: Option<f64>,
     /// pf/phd: write the number of objects per frame here (CSV: the filter's count, its
-    /// mode, the count smoothed over the next frames, its mode, the count of visible
-    /// objects from the labels' detection histories, its mode, tracks reported,
+    /// mode, the count smoothed over the next frames, its mode, tracks reported,
     /// detections).
     #[arg(long, value_name = "F.csv")]
     pub counts: Option<PathBuf>,
@@ -439,19 +438,17 @@ fn write_counts(mut out: AtomicFile, counts: &[FrameCount]) -> roadtrack::Result
     let mut write = || -> std::io::Result<()> {
         writeln!(
             out,
-            "frame,expected,most_probable,smoothed,smoothed_most_probable,visible,visible_most_probable,reported,detections"
+            "frame,expected,most_probable,smoothed,smoothed_most_probable,reported,detections"
         )?;
         for c in counts {
             writeln!(
                 out,
-                "{},{:.4},{},{:.4},{},{:.4},{},{},{}",
+                "{},{:.4},{},{:.4},{},{},{}",
                 c.frame,
                 c.expected,
                 c.most_probable,
                 c.smoothed,
                 c.smoothed_most_probable,
-                c.visible,
-                c.visible_most_probable,
                 c.reported,
                 c.detections
             )?;

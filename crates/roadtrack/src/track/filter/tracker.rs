@@ -17,7 +17,7 @@ use super::config::{BirthSource, ColourReference, FilterMethod, FilterTrackConfi
 use super::config::{LikelihoodKind, TrackLikelihoodConfig};
 use super::detections::Measurements;
 use super::particle::{LikelihoodFactory, ParticleFilterTracker};
-use super::phd::{ExistenceSmoother, FilterStageTimes, LabelWeights, PhdTracker, VisibilityModel};
+use super::phd::{ExistenceSmoother, FilterStageTimes, LabelWeights, PhdTracker};
 use crate::detect::FrameDetections;
 use crate::detection::Detection;
 use crate::error::{Error, Result};
@@ -32,7 +32,6 @@ use crate::track::{FramePoints, Tracker};
 use crate::track_point::TrackPoint;
 use image::{GrayImage, RgbImage};
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
 /// Per-frame counts of a run ([`FilterTracker::record_counts`]).
@@ -52,13 +51,6 @@ pub struct FrameCount {
     pub smoothed: f64,
     /// The mode of the smoothed existences ([`super::phd::map_cardinality`]).
     pub smoothed_most_probable: usize,
-    /// The PHD's count of visible objects: Σ over labels of P(visible) given the label's
-    /// hits and misses over the whole run ([`super::phd::VisibilityModel`], fitted to the
-    /// run); the PF's object count, and the PHD's Σw when no label was ever detected (the
-    /// image likelihood, shared labels). Filled in when the run ends.
-    pub visible: f64,
-    /// The mode of those probabilities.
-    pub visible_most_probable: usize,
     /// Tracks reported in the frame.
     pub reported: usize,
     /// Detections in the frame.
@@ -87,11 +79,6 @@ pub struct FilterTracker {
     counts: Option<Vec<FrameCount>>,
     /// The PHD's count smoother (with [`FilterTracker::record_counts`]).
     smoother: Option<ExistenceSmoother>,
-    /// Each PHD label's frames (indices into `counts`) and whether it was detected there
-    /// (with [`FilterTracker::record_counts`]).
-    histories: BTreeMap<u32, Vec<(usize, bool)>>,
-    /// The chain fitted to `histories` when the run ended.
-    visibility: Option<VisibilityModel>,
 }
 
 impl std::fmt::Debug for FilterTracker {
@@ -142,8 +129,6 @@ impl FilterTracker {
             runner: None,
             counts: None,
             smoother: None,
-            histories: BTreeMap::new(),
-            visibility: None,
         })
     }
 
@@ -157,28 +142,12 @@ impl FilterTracker {
         }
     }
 
-    /// The visibility chain fitted to the PHD's label histories at the end of a run with
-    /// [`FilterTracker::record_counts`].
-    pub fn visibility_model(&self) -> Option<VisibilityModel> {
-        self.visibility
-    }
-
-    /// Records a frame's count and its labels' detections, and the smoothed count of the
-    /// frame the smoother returns.
-    fn push_count(&mut self, count: FrameCount, labels: LabelWeights, detected: &BTreeSet<u32>) {
+    /// Records a frame's count, and the smoothed count of the frame the smoother returns.
+    fn push_count(&mut self, count: FrameCount, labels: LabelWeights) {
         let Some(counts) = self.counts.as_mut() else {
             return;
         };
         counts.push(count);
-        if self.smoother.is_some() {
-            let k = counts.len() - 1;
-            for &label in labels.keys() {
-                self.histories
-                    .entry(label)
-                    .or_default()
-                    .push((k, detected.contains(&label)));
-            }
-        }
         if let Some(s) = self.smoother.as_mut()
             && let Some(w) = s.push(labels)
         {
@@ -242,8 +211,8 @@ impl FilterTracker {
             let Some(r) = self.runner.as_mut() else {
                 break;
             };
-            let (points, count, labels, detected) = r.step(&f, &d, m.as_ref())?;
-            self.push_count(count, labels, &detected);
+            let (points, count, labels) = r.step(&f, &d, m.as_ref())?;
+            self.push_count(count, labels);
             out.push(FramePoints::new(&f, points));
         }
         Ok(out)
@@ -262,12 +231,12 @@ impl Tracker for FilterTracker {
             )));
         }
         if let Some(r) = self.runner.as_mut() {
-            let (points, count, labels, detected) = r.step(
+            let (points, count, labels) = r.step(
                 frame,
                 &detections.detections,
                 detections.foreground.as_ref(),
             )?;
-            self.push_count(count, labels, &detected);
+            self.push_count(count, labels);
             return Ok(vec![FramePoints::new(frame, points)]);
         }
         if !detections.detections.is_empty() {
@@ -300,34 +269,6 @@ impl Tracker for FilterTracker {
             for (c, w) in counts[first..].iter_mut().zip(&rest) {
                 set_smoothed(c, w);
             }
-            // Choice: the whole history of every label, not a fixed look-ahead: on seeds
-            // 4-6 (crossing, intersection, road) it counted best, 0.001-0.02 below a
-            // look-ahead of 3-5 frames (docs/EXPERIMENTS.md "Visible objects from the
-            // labels' detection histories").
-            let histories: Vec<Vec<bool>> = self
-                .histories
-                .values()
-                .map(|h| h.iter().map(|&(_, hit)| hit).collect())
-                .collect();
-            // Without detections as measurements (the image likelihood) or with shared
-            // labels no label is ever marked detected: the count stays the filter's.
-            if !histories.iter().flatten().any(|&hit| hit) {
-                self.histories.clear();
-                return Ok(out);
-            }
-            let model = VisibilityModel::fit(&histories);
-            let mut per_frame: Vec<Vec<f64>> = vec![Vec::new(); counts.len()];
-            for (h, hits) in self.histories.values().zip(&histories) {
-                for (&(k, _), p) in h.iter().zip(model.visible(hits, None)) {
-                    per_frame[k].push(p);
-                }
-            }
-            for (c, p) in counts.iter_mut().zip(&per_frame) {
-                c.visible = p.iter().sum();
-                c.visible_most_probable = super::phd::map_cardinality(p.iter().copied());
-            }
-            self.histories.clear();
-            self.visibility = Some(model);
         }
         Ok(out)
     }
@@ -437,14 +378,14 @@ impl Runner {
         }
     }
 
-    /// Tracks one frame: its points (sorted by id), counts, every PHD label's weight and
-    /// the labels detected in the frame (both empty for the PF).
+    /// Tracks one frame: its points (sorted by id), counts, and every PHD label's weight
+    /// (empty for the PF).
     fn step(
         &mut self,
         frame: &Frame,
         dets: &[Detection],
         mask: Option<&GrayImage>,
-    ) -> Result<(Vec<TrackPoint>, FrameCount, LabelWeights, BTreeSet<u32>)> {
+    ) -> Result<(Vec<TrackPoint>, FrameCount, LabelWeights)> {
         if self.cfg.likelihood.kind != LikelihoodKind::Colour
             && let Some(mask) = mask
         {
@@ -556,10 +497,6 @@ impl Runner {
                     .collect()
             }),
         };
-        let detected = match &self.filter {
-            Filter::Pf(_) => BTreeSet::new(),
-            Filter::Phd(t) => t.detected_labels().clone(),
-        };
         let most_probable = match &self.filter {
             Filter::Pf(t) => t.n_objects(),
             Filter::Phd(_) => super::phd::map_cardinality(labels.values().copied()),
@@ -594,12 +531,10 @@ impl Runner {
             most_probable,
             smoothed: expected,
             smoothed_most_probable: most_probable,
-            visible: expected,
-            visible_most_probable: most_probable,
             reported: points.len(),
             detections: dets.len(),
         };
-        Ok((points, count, labels, detected))
+        Ok((points, count, labels))
     }
 }
 

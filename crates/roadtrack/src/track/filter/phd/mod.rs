@@ -21,8 +21,7 @@
 //! Files: `config.rs` (the parameters), `labelled.rs` (the filter's state and steps),
 //! `detections.rs` (step d with detections as measurements), `association.rs` (the same
 //! with a detection explaining at most one label), `occlusion.rs` (a lower `p_D` for
-//! labels hidden behind others), `smoother.rs` (the count smoothed over the next frames), `visibility.rs` (the
-//! count of visible objects from the labels' detection histories),
+//! labels hidden behind others), `smoother.rs` (the count smoothed over the next frames),
 //! `tracker.rs` (the filter on frames), `tests.rs`.
 
 mod association;
@@ -35,7 +34,6 @@ mod smoother;
 #[cfg(test)]
 mod tests;
 mod tracker;
-mod visibility;
 
 pub use super::FilterStageTimes;
 pub use association::{LabelAssociation, marginal_associations};
@@ -48,7 +46,6 @@ use labelled::kmeans;
 pub use occlusion::{LabelBox, occluded_pd, visible_fractions};
 pub use smoother::{ExistenceSmoother, LabelWeights, smoothed_existence};
 pub use tracker::PhdTracker;
-pub use visibility::VisibilityModel;
 
 use crate::error::Result;
 use crate::geometry::Point;
