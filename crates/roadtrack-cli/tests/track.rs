@@ -522,19 +522,30 @@ fn filters_weigh_particles_by_the_detections_and_refuse_bad_settings() {
         .output()
         .expect("run");
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    let cfg = dir.path().join("bad.toml");
-    std::fs::write(&cfg, "[detections]\ndetection_prob = 2.0\n").expect("write");
-    let o = bin()
-        .args(["track", "x", "--method", "pf", "--config"])
-        .arg(&cfg)
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(1));
-    let e = stderr(&o);
+    let e = config_error(
+        dir.path(),
+        "pf",
+        "bad.toml",
+        "[detections]\ndetection_prob = 2.0\n",
+    );
     assert!(
         e.contains("detections.detection_prob") && e.contains("bad.toml"),
         "{e}"
     );
+}
+
+/// `track x --method METHOD --config DIR/NAME` with `text` in the file: exits 1 (the
+/// config is read before the input); its standard error.
+fn config_error(dir: &Path, method: &str, name: &str, text: &str) -> String {
+    let cfg = dir.join(name);
+    std::fs::write(&cfg, text).expect("write");
+    let o = bin()
+        .args(["track", "x", "--method", method, "--config"])
+        .arg(&cfg)
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    stderr(&o)
 }
 
 /// `--counts`: one row per frame for the filters, the detections column the sequence's
@@ -600,15 +611,7 @@ fn the_filters_write_their_counts_per_frame() {
     let e = stderr(&o);
     assert!(e.contains("--counts") && e.contains("is a folder"), "{e}");
     assert!(!tracks.exists());
-    let cfg = dir.path().join("lag.toml");
-    std::fs::write(&cfg, "count_lag_frames = 1000\n").expect("write");
-    let o = bin()
-        .args(["track", "x", "--method", "phd", "--config"])
-        .arg(&cfg)
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(1));
-    let e = stderr(&o);
+    let e = config_error(dir.path(), "phd", "lag.toml", "count_lag_frames = 1000\n");
     assert!(
         e.contains("count_lag_frames") && e.contains("lag.toml"),
         "{e}"
