@@ -549,26 +549,39 @@ fn config_error(dir: &Path, method: &str, name: &str, text: &str) -> String {
 }
 
 /// `--counts`: one row per frame for the filters, the detections column the sequence's
-/// own, the PHD's smoothed count beside its filtered one; a bad look-ahead exits 1 naming
-/// the field.
+/// own, the PHD's smoothed count beside its filtered one (with the pedestrian file; the
+/// same as the filter's without it); a bad look-ahead exits 1 naming the field.
 #[test]
 fn the_filters_write_their_counts_per_frame() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = dir.path().join("seq");
     simulate(&seq, SceneKind::Crossing, ViewKind::Oblique, 30);
     let det = roadtrack::io::mot::read_detections(&seq.join("det/det.txt")).expect("det");
+    // The file that turns the smoothing on (count_lag_frames = 1; off by default).
+    let config = committed_config("filters-pedestrians.toml");
     for method in ["pf", "phd"] {
         let counts = dir.path().join(format!("{method}.csv"));
-        let o = bin()
-            .arg("track")
-            .arg(&seq)
-            .args(["--method", method, "--detector", "file", "-q", "-o"])
-            .arg(dir.path().join(format!("{method}.txt")))
-            .arg("--counts")
-            .arg(&counts)
-            .output()
-            .expect("run");
-        assert!(o.status.success(), "{}", stderr(&o));
+        let run = |config: Option<&Path>| {
+            let mut cmd = bin();
+            cmd.arg("track")
+                .arg(&seq)
+                .args(["--method", method, "--detector", "file", "-q", "-o"])
+                .arg(dir.path().join(format!("{method}.txt")))
+                .arg("--counts")
+                .arg(&counts);
+            if let Some(c) = config {
+                cmd.arg("--config").arg(c);
+            }
+            let o = cmd.output().expect("run");
+            assert!(o.status.success(), "{}", stderr(&o));
+            std::fs::read_to_string(&counts).expect("counts")
+        };
+        // Without the file the smoothed columns repeat the filter's.
+        for row in run(None).lines().skip(1) {
+            let v: Vec<&str> = row.split(',').collect();
+            assert_eq!((v[1], v[2]), (v[3], v[4]), "{method}: {row}");
+        }
+        run(Some(&config));
         let text = std::fs::read_to_string(&counts).expect("counts");
         let mut lines = text.lines();
         assert_eq!(

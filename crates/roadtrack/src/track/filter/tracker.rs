@@ -46,8 +46,9 @@ pub struct FrameCount {
     pub most_probable: usize,
     /// The PHD's count smoothed over the next
     /// [`FilterTrackConfig::count_lag_frames`] frames: Σ of the labels' existence given
-    /// those frames ([`super::phd::ExistenceSmoother`]); the PF's object count. Filled in
-    /// once the later frames are tracked (at the end of the run for the last ones).
+    /// those frames ([`super::phd::ExistenceSmoother`]); `expected` when that is 0, and the
+    /// PF's object count. Filled in once the later frames are tracked (at the end of the
+    /// run for the last ones).
     pub smoothed: f64,
     /// The mode of the smoothed existences ([`super::phd::map_cardinality`]).
     pub smoothed_most_probable: usize,
@@ -135,7 +136,7 @@ impl FilterTracker {
     /// Keeps a [`FrameCount`] per frame from now on ([`FilterTracker::counts`]).
     pub fn record_counts(&mut self) {
         self.counts.get_or_insert_with(Vec::new);
-        if self.method == FilterMethod::Phd {
+        if self.method == FilterMethod::Phd && self.cfg.count_lag_frames > 0 {
             let lag = self.cfg.count_lag_frames as usize;
             self.smoother
                 .get_or_insert_with(|| ExistenceSmoother::new(lag, self.cfg.phd.survival_prob));
