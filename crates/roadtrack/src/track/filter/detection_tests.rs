@@ -668,7 +668,7 @@ fn the_committed_pedestrian_config_is_valid_and_keeps_the_detection_likelihood()
 /// `cargo test -p roadtrack --lib detection_count_experiment -- --ignored --nocapture`
 /// (env `RT_CONFIGS=toml,occlusion 0.5`: only the rows whose name ends so; `RT_SEEDS=4,5,6`:
 /// other seeds; `RT_LAGS=0,1,2`: each row once per look-ahead of the smoothed count, else
-/// the config's own).
+/// the config's own: 0, off, for the defaults; 1 for filters-pedestrians.toml).
 #[test]
 #[ignore = "experiment, several minutes"]
 fn detection_count_experiment() -> Result<()> {
