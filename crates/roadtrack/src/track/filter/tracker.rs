@@ -398,7 +398,7 @@ impl Runner {
         }
         let cfg = &self.cfg;
         let with_image = cfg.measurements.uses_image();
-        let (mut points, expected, tracked) = match &mut self.filter {
+        let (mut points, expected, tracked, labels) = match &mut self.filter {
             Filter::Pf(t) if cfg.measurements.uses_detections() => {
                 let dets = finite(dets);
                 let z = cfg.detections.measurements(&dets);
@@ -406,7 +406,7 @@ impl Runner {
                 let tracked: Vec<(u64, Point)> =
                     pts.iter().map(|p| (p.id, p.bbox.centre())).collect();
                 let n = t.n_objects() as f64;
-                (pts, n, tracked)
+                (pts, n, tracked, LabelWeights::new())
             }
             Filter::Phd(t) if cfg.measurements.uses_detections() => {
                 let dets = finite(dets);
@@ -426,13 +426,8 @@ impl Runner {
                     cfg.birth_particles_per_detection,
                     with_image,
                 )?;
-                let tracked: Vec<(u64, Point)> = t.filter().map_or_else(Vec::new, |f| {
-                    f.all_estimates()
-                        .iter()
-                        .map(|e| (u64::from(e.label), e.pos))
-                        .collect()
-                });
-                (pts, t.expected_count(), tracked)
+                let (tracked, labels) = label_state(t);
+                (pts, t.expected_count(), tracked, labels)
             }
             Filter::Pf(t) => {
                 // Choice: a detection starts an object only when no object's last estimate
@@ -451,7 +446,7 @@ impl Runner {
                 let tracked: Vec<(u64, Point)> =
                     pts.iter().map(|p| (p.id, p.bbox.centre())).collect();
                 let n = t.n_objects() as f64;
-                (pts, n, tracked)
+                (pts, n, tracked, LabelWeights::new())
             }
             Filter::Phd(t) => {
                 let births: Vec<Point> = if matches!(cfg.births, BirthSource::Grid) {
@@ -479,25 +474,11 @@ impl Runner {
                     cfg.birth_particles_per_detection,
                     cfg.birth_spread_px,
                 )?;
-                let tracked: Vec<(u64, Point)> = t.filter().map_or_else(Vec::new, |f| {
-                    f.all_estimates()
-                        .iter()
-                        .map(|e| (u64::from(e.label), e.pos))
-                        .collect()
-                });
-                (pts, t.expected_count(), tracked)
+                let (tracked, labels) = label_state(t);
+                (pts, t.expected_count(), tracked, labels)
             }
         };
 
-        let labels: LabelWeights = match &self.filter {
-            Filter::Pf(_) => LabelWeights::new(),
-            Filter::Phd(t) => t.filter().map_or_else(LabelWeights::new, |f| {
-                f.all_estimates()
-                    .iter()
-                    .map(|e| (e.label, e.weight))
-                    .collect()
-            }),
-        };
         let most_probable = match &self.filter {
             Filter::Pf(t) => t.n_objects(),
             Filter::Phd(_) => super::phd::map_cardinality(labels.values().copied()),
@@ -537,6 +518,19 @@ impl Runner {
         };
         Ok((points, count, labels))
     }
+}
+
+/// Every PHD label's estimated position (the tracks the deleter checks for support) and
+/// weight, from one pass over the labels.
+fn label_state(t: &PhdTracker) -> (Vec<(u64, Point)>, LabelWeights) {
+    let estimates = t.filter().map_or_else(Vec::new, |f| f.all_estimates());
+    (
+        estimates
+            .iter()
+            .map(|e| (u64::from(e.label), e.pos))
+            .collect(),
+        estimates.iter().map(|e| (e.label, e.weight)).collect(),
+    )
 }
 
 /// Sets a frame's smoothed count from its labels' smoothed weights.
