@@ -312,10 +312,11 @@ fn fuzz_mrf_config() {
 fn filter_track(cases: u32) {
     let people = committed("filters-pedestrians.toml");
     let aerial = committed("phd-aerial.toml");
+    let road = committed("phd-road.toml");
     fuzz_config::<FilterTrackConfig>(
         "filter_track",
         cases,
-        &[&people, &aerial],
+        &[&people, &aerial, &road],
         |c| c.validate(),
         &[&format!("phd.{PHD_EXIT_SPEED}")],
     );
@@ -338,6 +339,28 @@ fn committed_aerial_phd_config_loads() {
     want.detections.clutter_per_frame = 5.0;
     assert_ne!(want, FilterTrackConfig::default());
     assert_eq!(aerial, want);
+}
+
+/// configs/phd-road.toml is the PHD part of filters-pedestrians.toml with the two fields of
+/// the detection likelihood its comments name changed, and nothing else.
+#[test]
+fn committed_road_phd_config_loads() {
+    let road = load_committed("phd-road.toml", FilterTrackConfig::validate);
+    let people = load_committed("filters-pedestrians.toml", FilterTrackConfig::validate);
+    let default = FilterTrackConfig::default();
+    assert_ne!(
+        (
+            default.detections.detection_prob,
+            default.detections.min_sigma_px
+        ),
+        (0.95, 1.0)
+    );
+    let mut want = people;
+    want.pf = default.pf.clone();
+    want.detections.pf_write_detection_centre = default.detections.pf_write_detection_centre;
+    want.detections.detection_prob = 0.95;
+    want.detections.min_sigma_px = 1.0;
+    assert_eq!(road, want);
 }
 
 /// 3 000 cases (the largest config: detector, PF, PHD and likelihood tables).

@@ -90,14 +90,21 @@ fn split_frame(
     parts
 }
 
-/// The scene of an `RT_SCENES` name: the crossing, the intersection or the road of the
-/// count experiments (crossing by default).
+/// The scene of an `RT_SCENES` name: `road`, `intersection`, `crossing` are the count
+/// experiments' views (the aerial road, the oblique junctions; crossing by default);
+/// `SCENE-VIEW` (e.g. `road-oblique`) any other.
 fn scene_of(name: &str) -> (SceneKind, ViewKind) {
-    match name {
-        "road" => (SceneKind::Road, ViewKind::Aerial),
-        "intersection" => (SceneKind::Intersection, ViewKind::Oblique),
-        _ => (SceneKind::Crossing, ViewKind::Oblique),
-    }
+    let (scene, view) = name.split_once('-').unwrap_or((name, ""));
+    let scene = match scene {
+        "road" => SceneKind::Road,
+        "intersection" => SceneKind::Intersection,
+        _ => SceneKind::Crossing,
+    };
+    let view = match (view, scene) {
+        ("aerial", _) | ("", SceneKind::Road) => ViewKind::Aerial,
+        _ => ViewKind::Oblique,
+    };
+    (scene, view)
 }
 
 /// Runs the detection PHD of `cfg` over `frames` frames of the scene `name` at `seed` on
@@ -132,8 +139,9 @@ fn run_phd(
 
 /// Count error of the detection PHD split per frame into [`PARTS`], seeds 1–3, 300 frames.
 /// Run with `cargo test -p roadtrack --lib count_error_split_experiment -- --ignored
-/// --nocapture` (env `RT_SCENES=crossing,intersection,road` picks scenes, `RT_CONFIG` a
-/// `FilterTrackConfig` TOML instead of the defaults, `RT_FRAMES` the length).
+/// --nocapture` (env `RT_SCENES=crossing,intersection,road-oblique` picks scenes, see
+/// [`scene_of`]; `RT_CONFIG` a `FilterTrackConfig` TOML instead of the defaults, an
+/// absolute path; `RT_FRAMES` the length).
 #[test]
 #[ignore = "experiment, several minutes"]
 fn count_error_split_experiment() -> Result<()> {

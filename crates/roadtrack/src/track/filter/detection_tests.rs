@@ -550,6 +550,28 @@ fn the_count_smoothed_over_the_next_frame_is_closer_to_the_truth_on_the_crossing
     Ok(())
 }
 
+/// configs/phd-road.toml against the pedestrian file on the oblique road, where most cars
+/// are a few px wide and a few px apart near the vanishing point (docs/EXPERIMENTS.md "The
+/// PHD on roads"; seed 1: 0.72 -> 0.39).
+#[test]
+fn the_road_config_counts_the_far_cars_of_the_oblique_road() -> Result<()> {
+    let steps = scene(SceneKind::Road, ViewKind::Oblique, 300, 1)?;
+    let smoothed = |cfg: &FilterTrackConfig| -> Result<f64> {
+        let (counts, _) = run_counts(FilterMethod::Phd, cfg, &steps, 1)?;
+        Ok(count_mae(&counts, 0, false, Estimate::Smoothed))
+    };
+    let (people, road) = (
+        smoothed(&pedestrian_config()?)?,
+        smoothed(&committed_config("phd-road.toml")?)?,
+    );
+    assert!(road < 0.5, "phd-road.toml {road:.3}");
+    assert!(
+        road < 0.75 * people,
+        "phd-road.toml {road:.3} against filters-pedestrians.toml {people:.3}"
+    );
+    Ok(())
+}
+
 #[test]
 fn the_filters_with_detections_are_the_same_at_1_and_2_threads() -> Result<()> {
     let steps = scene(SceneKind::Crossing, ViewKind::Oblique, 20, 2)?;
@@ -642,11 +664,13 @@ fn the_phd_writes_the_detections_centre_and_keeps_its_labels() -> Result<()> {
 
 /// `configs/filters-pedestrians.toml`, as loaded by `track --config`.
 fn pedestrian_config() -> Result<FilterTrackConfig> {
-    let path = std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../configs/filters-pedestrians.toml"
-    ));
-    FilterTrackConfig::from_toml_file(path)
+    committed_config("filters-pedestrians.toml")
+}
+
+/// `configs/NAME` of the repository.
+fn committed_config(name: &str) -> Result<FilterTrackConfig> {
+    let dir = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs"));
+    FilterTrackConfig::from_toml_file(&dir.join(name))
 }
 
 #[test]
