@@ -5,6 +5,9 @@ issue 14 target 2).
 
     python3 scripts/count_peers.py ROADTRACK SEQ_DIR... [--config configs/filters-pedestrians.toml]
 
+(`--config configs/phd-road.toml` for road sequences: docs/EXPERIMENTS.md "The PHD on
+roads".)
+
 For each sequence folder (from `roadtrack simulate`): runs `ROADTRACK track SEQ --method
 phd --detector file --config C --seed S --counts` (S = the sequence's seed, from
 simulation.toml) and norfair's IoU tracker (scripts/norfair_peer.py's settings) on
