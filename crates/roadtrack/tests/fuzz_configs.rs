@@ -333,6 +333,7 @@ fn committed_aerial_phd_config_loads() {
     want.phd.birth_speed_box_fraction = 0.22;
     want.phd.survival_prob = 0.99;
     want.phd.birth_rate = 0.5;
+    want.phd.report_weight = 0.95;
     want.detections.phd_write_detection_centre = true;
     want.detections.min_sigma_px = 0.2;
     want.detections.sigma_box_fraction = 0.1;
