@@ -176,6 +176,18 @@ pub struct MrfConfig {
     /// fraction inside the frame has left the view and ends at once, before
     /// `max_missed_frames`. Default 0.5; 0 = off.
     pub end_outside_fraction: f64,
+    /// With detections: whether an object that no box matched this frame is written (its
+    /// last box, moved with its blocks) or left out of the frame. Default true. With false
+    /// an object is written only in the frames where a box matched it, and the track life
+    /// cycle after the method fills the gaps with boxes interpolated between them
+    /// (`track --coast-frames N`, N at least `max_missed_frames`).
+    // Choice: the block-moved box is the seed's tracking between detections and stays the
+    // default; offline, a box interpolated between the boxes before and after a gap lands
+    // closer (oblique intersection from video, seeds 4–6, junction file with
+    // `max_missed_frames` 40 and `--coast-frames 40`: HOTA 0.597 written, 0.605 left out;
+    // docs/EXPERIMENTS.md "Interpolating the MRF's gaps"). configs/mrf-intersection.toml
+    // sets false.
+    pub write_unmatched: bool,
 }
 
 /// How the boxes of a frame are matched to objects ([`MrfConfig::association`]).
@@ -253,6 +265,7 @@ impl Default for MrfConfig {
             gate_width_factor: 1.0,
             keep_classes_apart: true,
             end_outside_fraction: 0.5,
+            write_unmatched: true,
         }
     }
 }

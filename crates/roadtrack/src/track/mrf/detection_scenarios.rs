@@ -467,3 +467,46 @@ fn the_detectors_boxes_are_written_and_the_blend_only_steers() -> Result<()> {
     assert!(moved > 20, "the blend moved {moved} boxes");
     Ok(())
 }
+
+#[test]
+fn an_object_missed_by_the_detector_is_left_out_only_when_asked() -> Result<()> {
+    let people = [
+        (1, 60.0, 0.0, 1.4, [150, 40, 40]),
+        (2, 60.0, 1.0, 1.4, [40, 60, 120]),
+    ];
+    let mut scene = walkers(&people, 30, 2)?;
+    // Walker 1's box is missing from frames 15–17 (the detector missed them).
+    let gap = 15..18;
+    for (k, (_, truth, dets)) in scene.iter_mut().enumerate() {
+        if gap.contains(&k) {
+            let b = truth[&1];
+            let before = dets.len();
+            dets.retain(|d| d.bbox().is_none_or(|d| d.iou(&b) < 0.5));
+            assert_eq!(dets.len() + 1, before, "frame {k}");
+        }
+    }
+    let written = run_with_boxes_at(&MrfConfig::default(), &scene, 640, 480)?;
+    let left_out = MrfConfig {
+        write_unmatched: false,
+        ..MrfConfig::default()
+    };
+    let left_out = run_with_boxes_at(&left_out, &scene, 640, 480)?;
+    let id_of = |f: &[TrackPoint], b: &BBox| f.iter().find(|p| p.bbox.iou(b) >= 0.3).map(|p| p.id);
+    let walker = id_of(&written[14], &scene[14].1[&1]).expect("walker 1 tracked");
+    for (k, ((a, b), (_, _, dets))) in written.iter().zip(&left_out).zip(&scene).enumerate() {
+        if gap.contains(&k) {
+            // Written: walker 1 on its blocks; left out.
+            assert!(a.iter().any(|p| p.id == walker), "frame {k}: {a:?}");
+            assert!(b.iter().all(|p| p.id != walker), "frame {k}: {b:?}");
+        }
+        // Left out: exactly the points written on a detector's box (the detector's own box
+        // is written), the same in both runs.
+        let matched: Vec<&TrackPoint> = a
+            .iter()
+            .filter(|p| dets.iter().any(|d| d.bbox() == Some(p.bbox)))
+            .collect();
+        assert_eq!(b.iter().collect::<Vec<_>>(), matched, "frame {k}");
+    }
+    assert_eq!(id_of(&left_out[20], &scene[20].1[&1]), Some(walker));
+    Ok(())
+}

@@ -688,6 +688,7 @@ impl MrfTracker {
             if let (Some((_, class, score)), Some(p), Some(&(area, _))) =
                 (&track.last, track.shown, region)
                 && area >= self.config.min_output_blocks
+                && self.config.write_unmatched
             {
                 out.push(TrackPoint {
                     frame: frame.index,
