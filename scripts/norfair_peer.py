@@ -2,7 +2,9 @@
 """Peer tracker for docs/TRACKING.md: norfair (PyPI, 2.x) with IoU distance on a
 sequence's public detections (det/det.txt), written as MOTChallenge tracks.
 
-    python scripts/norfair_peer.py SEQ_DIR OUT.txt
+    python scripts/norfair_peer.py SEQ_DIR OUT.txt [DETECTIONS.csv]
+
+DETECTIONS.csv: a roadtrack detections CSV (`roadtrack detect -o`) instead of det.txt.
 
 Not part of the test suite; needs `pip install norfair`. Settings are norfair's IoU
 example's: distance_threshold 0.7 (1 - IoU), hit_counter_max 15, initialization_delay
@@ -43,7 +45,13 @@ def track(boxes, n_frames, out):
         f.write("\n".join(rows) + ("\n" if rows else ""))
 
 
-def main(seq, out):
+def main(seq, out, detections=None):
+    if detections:
+        from detection_compare import read_ours
+
+        boxes = read_ours(detections)
+        track(boxes, seq_length(seq, max(boxes) if boxes else 0), out)
+        return
     boxes = defaultdict(list)
     with open(f"{seq}/det/det.txt") as f:
         for line in f:
@@ -55,4 +63,4 @@ def main(seq, out):
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    main(*sys.argv[1:4])

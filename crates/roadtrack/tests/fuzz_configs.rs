@@ -273,21 +273,27 @@ fn mrf(cases: u32) {
 }
 
 /// The committed MRF configs load, validate and differ from the default in the fields
-/// their comments name, and only there: the aerial file is the junction file with a
-/// 2 px distance gate.
+/// their comments name, and only there: the aerial file is the junction file as it was
+/// before 2026-11-30 (25 frames, unmatched objects written) with a 2 px distance gate.
 #[test]
 fn committed_mrf_configs_load() {
     let load = |name| load_committed(name, MrfConfig::validate);
     let (junction, aerial) = (load("mrf-intersection.toml"), load("mrf-aerial.toml"));
     let default = MrfConfig::default();
     assert_eq!(
-        (junction.max_missed_frames, junction.appearance_scale),
-        (25, 20.0)
+        (
+            junction.max_missed_frames,
+            junction.appearance_scale,
+            junction.write_unmatched
+        ),
+        (40, 20.0, false)
     );
+    assert!(default.write_unmatched);
     assert_eq!(
         MrfConfig {
             max_missed_frames: default.max_missed_frames,
             appearance_scale: default.appearance_scale,
+            write_unmatched: default.write_unmatched,
             ..junction.clone()
         },
         default
@@ -295,8 +301,14 @@ fn committed_mrf_configs_load() {
     assert_eq!(aerial.gate_px, 2.0);
     assert_ne!(default.gate_px, 2.0);
     assert_eq!(
+        (aerial.max_missed_frames, aerial.write_unmatched),
+        (25, true)
+    );
+    assert_eq!(
         MrfConfig {
             gate_px: junction.gate_px,
+            max_missed_frames: junction.max_missed_frames,
+            write_unmatched: junction.write_unmatched,
             ..aerial
         },
         junction

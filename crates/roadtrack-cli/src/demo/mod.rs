@@ -802,8 +802,10 @@ mod tests {
     #[test]
     fn demo_mrf_reads_the_intersection_config() -> Result<()> {
         let built_in = demo_mrf()?;
-        assert_eq!(built_in.max_missed_frames, 25);
-        assert_ne!(MrfConfig::default().max_missed_frames, 25);
+        assert_eq!(built_in.max_missed_frames, 40);
+        assert_ne!(MrfConfig::default().max_missed_frames, 40);
+        assert!(!built_in.write_unmatched);
+        assert!(MrfConfig::default().write_unmatched);
         assert_eq!(built_in.appearance_scale, 20.0);
         assert_ne!(MrfConfig::default().appearance_scale, 20.0);
         Ok(())
