@@ -26,7 +26,6 @@ use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
-use std::io::Write;
 use std::path::PathBuf;
 
 /// The likelihood h(y | x) of pf and phd.
@@ -433,9 +432,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
 }
 
 /// Writes `--counts`: one row per frame (docs/FORMATS.md "Counts CSV").
-fn write_counts(mut out: AtomicFile, counts: &[FrameCount]) -> roadtrack::Result<()> {
-    let path = out.path().to_owned();
-    let mut write = || -> std::io::Result<()> {
+fn write_counts(out: AtomicFile, counts: &[FrameCount]) -> roadtrack::Result<()> {
+    out.write_with(|out| {
         writeln!(
             out,
             "frame,expected,most_probable,smoothed,smoothed_most_probable,reported,detections"
@@ -454,9 +452,7 @@ fn write_counts(mut out: AtomicFile, counts: &[FrameCount]) -> roadtrack::Result
             )?;
         }
         Ok(())
-    };
-    write().map_err(|e| roadtrack::Error::io(&path, e))?;
-    out.commit()
+    })
 }
 
 /// The MRF tracker writing its Object-map after every frame (`--object-maps DIR`).

@@ -243,6 +243,24 @@ impl AtomicFile {
         &self.path
     }
 
+    /// Writes the file by calling `write` on it, then [`AtomicFile::commit`]s: on failure
+    /// the temporary file is removed and the destination is untouched.
+    ///
+    /// # Errors
+    /// `write` fails (the error names the destination, `<stdout>` for `-`), or the commit.
+    pub fn write_with(
+        mut self,
+        write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> Result<()> {
+        let name = if self.path.as_os_str() == "-" {
+            PathBuf::from("<stdout>")
+        } else {
+            self.path.clone()
+        };
+        write(&mut self).map_err(|e| Error::io(&name, e))?;
+        self.commit()
+    }
+
     /// Flushes, syncs and renames the temporary file over the destination (flushes a
     /// device or standard output).
     ///
@@ -471,14 +489,7 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    let mut file = AtomicFile::create(path)?;
-    let name = if path.as_os_str() == "-" {
-        Path::new("<stdout>")
-    } else {
-        path
-    };
-    write(&mut file).map_err(|e| Error::io(name, e))?;
-    file.commit()
+    AtomicFile::create(path)?.write_with(write)
 }
 
 /// Writes `bytes` to `path` atomically.
