@@ -25,10 +25,11 @@ import os
 import subprocess
 import sys
 import tempfile
-from collections import Counter, defaultdict
+from collections import Counter
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from norfair_peer import seq_length, track  # noqa: E402
+import norfair_peer  # noqa: E402
+from norfair_peer import seq_length  # noqa: E402
 
 COLUMNS = [
     ("detections", "detections"),
@@ -78,14 +79,8 @@ def main():
                 check=True)
             with open(counts_csv) as f:
                 ours = {int(r["frame"]): r for r in csv.DictReader(f)}
-            boxes = defaultdict(list)
-            with open(os.path.join(seq, "det/det.txt")) as f:
-                for line in f:
-                    c = line.strip().split(",")
-                    if len(c) >= 6:
-                        boxes[int(c[0])].append(tuple(map(float, c[2:6])))
             norfair_txt = os.path.join(tmp, "norfair.txt")
-            track(boxes, n_frames, norfair_txt)
+            norfair_peer.main(seq, norfair_txt)
             peer = Counter()
             with open(norfair_txt) as f:
                 for line in f:
