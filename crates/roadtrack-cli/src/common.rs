@@ -402,6 +402,11 @@ pub struct DetectorArgs {
     /// under 2 px. Off by default.
     #[arg(long)]
     pub dots: bool,
+    /// Fit each box of the detector (not pedestrians') to the pixels that differ from a
+    /// background model learnt from the input: tighter vehicle boxes on a fixed camera
+    /// (docs/DETECTION.md "Refined boxes"). Off by default.
+    #[arg(long)]
+    pub refine_boxes: bool,
     #[command(flatten)]
     pub onnx: crate::onnx_detector::OnnxArgs,
 }
@@ -440,10 +445,15 @@ impl DetectorArgs {
                         "--motion-gate needs --detector cnn, onnx or file",
                     ));
                 }
-                if self.dots {
-                    return Err(crate::flags::conflict(
-                        "--dots needs --detector (background, cnn, onnx or file)",
-                    ));
+                if self.dots || self.refine_boxes {
+                    let flag = if self.dots {
+                        "--dots"
+                    } else {
+                        "--refine-boxes"
+                    };
+                    return Err(crate::flags::conflict(format!(
+                        "{flag} needs --detector (background, cnn, onnx or file)"
+                    )));
                 }
                 return Ok(None);
             }
@@ -531,22 +541,38 @@ impl DetectorArgs {
         self.with_dots(gated, calibration, || Ok(cfg))
     }
 
-    /// `spec` with `--dots` added when asked for.
+    /// `spec` with `--dots` and `--refine-boxes` added when asked for (the dots against the
+    /// detector's own boxes, then the boxes refined).
     fn with_dots(
         &self,
         spec: roadtrack::detect::DetectorSpec,
         calibration: Option<&roadtrack::calibration::Calibration>,
         background: impl FnOnce() -> Result<roadtrack::detect::background::BackgroundDetectorConfig>,
     ) -> Result<Option<roadtrack::detect::DetectorSpec>> {
-        if !self.dots {
+        use roadtrack::detect::DetectorSpec;
+        if !self.dots && !self.refine_boxes {
             return Ok(Some(spec));
         }
-        Ok(Some(roadtrack::detect::DetectorSpec::WithDots(
-            Box::new(spec),
-            background()?,
-            roadtrack::detect::dots::DotConfig::default(),
-            calibration.map(|c| Box::new(c.clone())),
-        )))
+        let cfg = background()?;
+        let spec = if self.dots {
+            DetectorSpec::WithDots(
+                Box::new(spec),
+                cfg.clone(),
+                roadtrack::detect::dots::DotConfig::default(),
+                calibration.map(|c| Box::new(c.clone())),
+            )
+        } else {
+            spec
+        };
+        Ok(Some(if self.refine_boxes {
+            DetectorSpec::Refined(
+                Box::new(spec),
+                cfg,
+                roadtrack::detect::refine::RefineConfig::default(),
+            )
+        } else {
+            spec
+        }))
     }
 }
 

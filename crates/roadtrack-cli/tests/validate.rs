@@ -310,6 +310,7 @@ fn flags_of_another_method_or_mode_are_usage_errors() {
         (vec!["detect", seq, "--motion-gate", "0.2"], "--motion-gate"),
         (vec!["detect", seq, "--dots"], "--dots"),
         (vec!["track", seq, "--method", "mrf", "--dots"], "--dots"),
+        (vec!["detect", seq, "--refine-boxes"], "--refine-boxes"),
         (
             vec![
                 "detect",

@@ -123,12 +123,38 @@ impl DotConfig {
                 format!("must be in [0, 1], found {}", self.score),
             ));
         }
+        self.pixel_test().validate("DotConfig")
+    }
+
+    pub(crate) fn pixel_test(&self) -> PixelTest {
+        PixelTest {
+            min_difference: self.min_difference,
+            shadow_min_ratio: self.shadow_min_ratio,
+            shadow_max_ratio: self.shadow_max_ratio,
+            shadow_max_chroma: self.shadow_max_chroma,
+        }
+    }
+}
+
+/// Which pixels differ from the background and which of those are shadow ([`classify`]):
+/// the fields of the same names of [`DotConfig`] and [`super::refine::RefineConfig`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PixelTest {
+    pub min_difference: f64,
+    pub shadow_min_ratio: f64,
+    pub shadow_max_ratio: f64,
+    pub shadow_max_chroma: f64,
+}
+
+impl PixelTest {
+    /// Checks the shadow bounds; `config` names the configuration in the error.
+    pub(crate) fn validate(&self, config: &'static str) -> Result<()> {
         let ratios_ordered = (0.0..=1.0).contains(&self.shadow_min_ratio)
             && self.shadow_max_ratio >= self.shadow_min_ratio
             && self.shadow_max_ratio <= 1.0;
         if !ratios_ordered {
             return Err(Error::config(
-                "DotConfig",
+                config,
                 "shadow_min_ratio/shadow_max_ratio",
                 format!(
                     "must satisfy 0 ≤ min ≤ max ≤ 1, found {} and {}",
@@ -138,7 +164,7 @@ impl DotConfig {
         }
         if !(self.shadow_max_chroma.is_finite() && self.shadow_max_chroma >= 0.0) {
             return Err(Error::config(
-                "DotConfig",
+                config,
                 "shadow_max_chroma",
                 format!("must be 0 or more, found {}", self.shadow_max_chroma),
             ));
@@ -160,8 +186,8 @@ pub(crate) struct Dot {
 }
 
 /// What the pixel `rgb` over background `mu` is: its difference when it differs by
-/// [`DotConfig::min_difference`] or more, and whether it is shadow.
-fn classify(rgb: &[u8], mu: &[f32], cfg: &DotConfig) -> Option<(f32, bool)> {
+/// [`PixelTest::min_difference`] or more, and whether it is shadow.
+pub(crate) fn classify(rgb: &[u8], mu: &[f32], cfg: &PixelTest) -> Option<(f32, bool)> {
     let f = [f32::from(rgb[0]), f32::from(rgb[1]), f32::from(rgb[2])];
     let diff: f32 = (0..3).map(|k| (f[k] - mu[k]).abs()).sum();
     if f64::from(diff) < cfg.min_difference {
@@ -229,12 +255,13 @@ pub(crate) fn find_dots(
     let (w, h) = (image.width() as usize, image.height() as usize);
     let px = image.as_raw();
     // Per pixel: the difference of a dot pixel, 0 elsewhere.
+    let test = cfg.pixel_test();
     let mut diff = vec![0f32; w * h];
     for (i, d) in diff.iter_mut().enumerate() {
         if allowed.is_some_and(|a| !a[i]) {
             continue;
         }
-        if let Some((v, false)) = classify(&px[3 * i..3 * i + 3], &mean[3 * i..3 * i + 3], cfg) {
+        if let Some((v, false)) = classify(&px[3 * i..3 * i + 3], &mean[3 * i..3 * i + 3], &test) {
             *d = v;
         }
     }

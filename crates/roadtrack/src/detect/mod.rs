@@ -17,6 +17,7 @@ pub mod ghosts;
 pub mod morphology;
 pub mod motion_gate;
 pub mod nested;
+pub mod refine;
 pub mod regions;
 pub mod split;
 pub mod startup;
@@ -162,6 +163,13 @@ pub enum DetectorSpec {
         dots::DotConfig,
         Option<Box<crate::calibration::Calibration>>,
     ),
+    /// Another detector's boxes fitted to the pixels that differ from a background model
+    /// with this config ([`refine::RefinedBoxes`]).
+    Refined(
+        Box<DetectorSpec>,
+        background::BackgroundDetectorConfig,
+        refine::RefineConfig,
+    ),
 }
 
 impl std::fmt::Debug for DetectorSpec {
@@ -182,6 +190,12 @@ impl std::fmt::Debug for DetectorSpec {
                 .field(c)
                 .field(d)
                 .finish_non_exhaustive(),
+            DetectorSpec::Refined(inner, c, r) => f
+                .debug_tuple("Refined")
+                .field(inner)
+                .field(c)
+                .field(r)
+                .finish(),
         }
     }
 }
@@ -221,6 +235,12 @@ impl DetectorSpec {
                     dots,
                     calibration.map(|c| *c),
                 )?)
+            }
+            DetectorSpec::Refined(inner, cfg, refine) => {
+                refine.validate()?;
+                let inner = inner.build(input, options, info)?;
+                let bg = background_on(cfg, input, options)?;
+                Box::new(refine::RefinedBoxes::new(inner, bg, refine)?)
             }
         })
     }

@@ -299,9 +299,11 @@ impl MethodConfig {
                 Some(Box::new(FileDetector::open(&path, info.total_frames)?))
             }
             Some(DetectorSpec::Given(d)) => Some(d),
-            Some(wrapped @ (DetectorSpec::MotionGated(..) | DetectorSpec::WithDots(..))) => {
-                Some(wrapped.build(input, options, info)?)
-            }
+            Some(
+                wrapped @ (DetectorSpec::MotionGated(..)
+                | DetectorSpec::WithDots(..)
+                | DetectorSpec::Refined(..)),
+            ) => Some(wrapped.build(input, options, info)?),
         };
         Ok(match self {
             MethodConfig::Relaxation { tracker, .. } => Built {
