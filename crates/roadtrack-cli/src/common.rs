@@ -407,6 +407,10 @@ pub struct DetectorArgs {
     /// (docs/DETECTION.md "Refined boxes"). Off by default.
     #[arg(long)]
     pub refine_boxes: bool,
+    /// With --refine-boxes, fit pedestrians' boxes too: where people walk apart (a junction
+    /// seen from a pole), not in crowds, whose fitted boxes join.
+    #[arg(long, requires = "refine_boxes")]
+    pub refine_pedestrians: bool,
     #[command(flatten)]
     pub onnx: crate::onnx_detector::OnnxArgs,
 }
@@ -568,7 +572,12 @@ impl DetectorArgs {
             DetectorSpec::Refined(
                 Box::new(spec),
                 cfg,
-                roadtrack::detect::refine::RefineConfig::default(),
+                roadtrack::detect::refine::RefineConfig {
+                    pedestrians: self.refine_pedestrians,
+                    ..std::env::var("RT_REFINE")
+                        .map(|t| toml::from_str(&t).expect("RT_REFINE"))
+                        .unwrap_or_default()
+                },
             )
         } else {
             spec

@@ -317,6 +317,16 @@ fn flags_of_another_method_or_mode_are_usage_errors() {
                 seq,
                 "--detector",
                 "background",
+                "--refine-pedestrians",
+            ],
+            "--refine-boxes",
+        ),
+        (
+            vec![
+                "detect",
+                seq,
+                "--detector",
+                "background",
                 "--motion-gate",
                 "0.2",
             ],
