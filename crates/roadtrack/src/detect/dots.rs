@@ -434,26 +434,7 @@ impl WithDots {
     }
 }
 
-impl Detector for WithDots {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
-        let found = self.inner.detect(frame)?;
-        self.add_dots(frame, found)
-    }
-
-    fn batch_len(&self) -> usize {
-        self.inner.batch_len()
-    }
-
-    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
-        let found = super::detect_checked(self.inner.as_mut(), frames)?;
-        // The background model learns from each frame in order.
-        frames
-            .iter()
-            .zip(found)
-            .map(|(frame, f)| self.add_dots(frame, f))
-            .collect()
-    }
-}
+super::detector_after_inner!(WithDots, add_dots);
 
 #[cfg(test)]
 mod tests {

@@ -84,6 +84,36 @@ pub fn next_batch(
     Ok(!batch.is_empty())
 }
 
+/// [`Detector`] for a wrapper of another detector (`inner: Box<dyn Detector>`) whose method
+/// `$step(&mut self, &Frame, FrameDetections) -> Result<FrameDetections>` runs on each of
+/// the inner detector's results, frame by frame in order, so that a background model beside
+/// it learns every frame in order ([`motion_gate::MotionGated`], [`dots::WithDots`],
+/// [`refine::RefinedBoxes`]).
+macro_rules! detector_after_inner {
+    ($wrapper:ty, $step:ident) => {
+        impl super::Detector for $wrapper {
+            fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
+                let found = self.inner.detect(frame)?;
+                self.$step(frame, found)
+            }
+
+            fn batch_len(&self) -> usize {
+                self.inner.batch_len()
+            }
+
+            fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
+                let found = super::detect_checked(self.inner.as_mut(), frames)?;
+                frames
+                    .iter()
+                    .zip(found)
+                    .map(|(frame, f)| self.$step(frame, f))
+                    .collect()
+            }
+        }
+    };
+}
+pub(crate) use detector_after_inner;
+
 /// `detector`'s [`Detector::detect_batch`] on `frames`, checked to give one result per frame.
 ///
 /// # Errors

@@ -110,6 +110,12 @@ impl MotionGated {
         })
     }
 
+    /// `found` gated by the background detector's mask of `frame`; learns the frame.
+    fn after(&mut self, frame: &Frame, found: FrameDetections) -> Result<FrameDetections> {
+        let mask = self.background.process(frame)?.mask;
+        Ok(self.gate(found, mask))
+    }
+
     fn gate(&self, found: FrameDetections, mask: GrayImage) -> FrameDetections {
         let detections: Vec<_> = found
             .detections
@@ -132,28 +138,7 @@ impl MotionGated {
     }
 }
 
-impl Detector for MotionGated {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
-        let found = self.inner.detect(frame)?;
-        let mask = self.background.process(frame)?.mask;
-        Ok(self.gate(found, mask))
-    }
-
-    fn batch_len(&self) -> usize {
-        self.inner.batch_len()
-    }
-
-    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
-        let found = super::detect_checked(self.inner.as_mut(), frames)?;
-        // The background model learns from each frame in order.
-        let mut out = Vec::with_capacity(frames.len());
-        for (frame, f) in frames.iter().zip(found) {
-            let mask = self.background.process(frame)?.mask;
-            out.push(self.gate(f, mask));
-        }
-        Ok(out)
-    }
-}
+super::detector_after_inner!(MotionGated, after);
 
 #[cfg(test)]
 mod tests {

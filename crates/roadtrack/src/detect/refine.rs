@@ -301,26 +301,7 @@ impl RefinedBoxes {
     }
 }
 
-impl Detector for RefinedBoxes {
-    fn detect(&mut self, frame: &Frame) -> Result<FrameDetections> {
-        let found = self.inner.detect(frame)?;
-        self.refine(frame, found)
-    }
-
-    fn batch_len(&self) -> usize {
-        self.inner.batch_len()
-    }
-
-    fn detect_batch(&mut self, frames: &[Frame]) -> Result<Vec<FrameDetections>> {
-        let found = super::detect_checked(self.inner.as_mut(), frames)?;
-        // The background model learns from each frame in order.
-        frames
-            .iter()
-            .zip(found)
-            .map(|(frame, f)| self.refine(frame, f))
-            .collect()
-    }
-}
+super::detector_after_inner!(RefinedBoxes, refine);
 
 #[cfg(test)]
 mod tests {
