@@ -1,0 +1,100 @@
+#!/usr/bin/env python3
+"""Refined boxes (`--refine-boxes`, docs/DETECTION.md "Refined boxes") on each scene's best
+pipeline from video (docs/EXPERIMENTS.md "Refined boxes"), beside norfair's IoU tracker on
+the same boxes, refined and not, and the MOG2 + norfair script, on the same frames.
+Class-agnostic HOTA by `roadtrack evaluate`. Prints a row per scene and seed, then the means.
+
+    python scripts/refine_table.py --roadtrack $CARGO_TARGET_DIR/release/roadtrack \\
+        [--seeds 1,2,3] [--scenes road-aerial,…] [--work /tmp/refine]
+
+Each sequence's learned-detector boxes are found once and kept as WORK/SEQ/NAME (the name
+says the flags), so a rerun only tracks. Run from the repository root (configs/ and
+models/detector.onnx are read from there). Not part of the test suite; needs
+`pip install opencv-python-headless numpy norfair`.
+"""
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mog2_norfair  # noqa: E402
+import norfair_peer  # noqa: E402
+from video_tracking_table import evaluate, run, sequence  # noqa: E402
+
+DOTS = ["--confirm-hits", "32", "--orient-walkers", "--smooth-robust", "--smooth-boxes", "12",
+        "--smooth-vehicle-boxes", "5"]
+JUNCTION = ["--config", "configs/mrf-intersection.toml", "--coast-frames", "40"]
+# The refinement: vehicles' boxes from above (walkers are dots there, centred already),
+# everyone's from the side.
+VEHICLES = ["--refine-boxes"]
+ALL = ["--refine-boxes", "--refine-pedestrians"]
+# scene-view: (boxes file, detect flags ({seq}: the sequence), method, track flags,
+# refinement flags).
+RECIPES = {
+    "road-aerial": ("det_flip.csv", ["--flip-vertical"], "relaxation",
+                    ["--config", "configs/relaxation-video.toml", "--smooth-vehicle-boxes", "9"],
+                    VEHICLES),
+    "road-oblique": ("det_z16.csv", ["--zoom-small", "16", "--calibration",
+                                     "{seq}/calibration.toml"], "mrf", [], ALL),
+    "intersection-oblique": ("det_z16.csv", ["--zoom-small", "16"], "mrf", JUNCTION, ALL),
+    "intersection-aerial": ("det_dots.csv", ["--flip-vertical", "--dots", "--calibration",
+                                             "{seq}/calibration.toml"], "phd",
+                            ["--config", "configs/phd-aerial.toml", *DOTS], VEHICLES),
+    "crossing-aerial": ("det_dots.csv", ["--flip-vertical", "--dots", "--calibration",
+                                         "{seq}/calibration.toml"], "phd",
+                        ["--config", "configs/phd-aerial.toml", *DOTS], VEHICLES),
+    "crossing-oblique": ("det_cnn.csv", [], "mrf", JUNCTION, ALL),
+}
+COLUMNS = ["MOG2 + norfair", "norfair", "norfair refined", "ours", "ours refined"]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--roadtrack", default="roadtrack")
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--scenes", default=",".join(RECIPES))
+    ap.add_argument("--work", default="/tmp/refine")
+    a = ap.parse_args()
+    rt = a.roadtrack
+    os.makedirs(a.work, exist_ok=True)
+    print("| scene | seed | method | " + " | ".join(COLUMNS) + " |")
+    print("| --- | ---: | --- |" + " ---: |" * len(COLUMNS))
+    means = {}
+    for sv in a.scenes.split(","):
+        name, detect, method, extra, refine = RECIPES[sv]
+        scene, view = sv.split("-")
+        for seed in (int(s) for s in a.seeds.split(",")):
+            seq = sequence(rt, a.work, scene, view, seed, a.frames)
+            boxes, refined = f"{seq}/{name}", f"{a.work}/refined.csv"
+            if not os.path.exists(boxes):
+                run([rt, "-q", "detect", seq, "--detector", "cnn",
+                     *(f.replace("{seq}", seq) for f in detect), "-o", boxes])
+            run([rt, "-q", "detect", seq, "--detector", "file", "--detections", boxes,
+                 *refine, "-o", refined])
+            t = f"{a.work}/t.txt"
+            row = []
+            mog2_norfair.main(seq, t)
+            row.append(evaluate(rt, seq, t)["HOTA"])
+            for d in (boxes, refined):
+                norfair_peer.main(seq, t, d)
+                row.append(evaluate(rt, seq, t)["HOTA"])
+            for flags in ([], refine):
+                run([rt, "-q", "track", seq, "--method", method, "--detector", "file",
+                     "--detections", boxes, *extra, *flags, "--seed", str(seed), "-o", t])
+                row.append(evaluate(rt, seq, t)["HOTA"])
+            means.setdefault(sv, []).append(row)
+            cells = " | ".join(f"{v:.3f}" for v in row)
+            print(f"| {sv} | {seed} | {method} | {cells} |", flush=True)
+    print()
+    print(f"Means over seeds {a.seeds}:")
+    print()
+    print("| scene | " + " | ".join(COLUMNS) + " |")
+    print("| --- |" + " ---: |" * len(COLUMNS))
+    for sv, rows in means.items():
+        cells = " | ".join(f"{sum(c) / len(c):.3f}" for c in zip(*rows))
+        print(f"| {sv} | {cells} |")
+
+
+if __name__ == "__main__":
+    main()
