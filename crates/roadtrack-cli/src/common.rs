@@ -574,9 +574,7 @@ impl DetectorArgs {
                 cfg,
                 roadtrack::detect::refine::RefineConfig {
                     pedestrians: self.refine_pedestrians,
-                    ..std::env::var("RT_REFINE")
-                        .map(|t| toml::from_str(&t).expect("RT_REFINE"))
-                        .unwrap_or_default()
+                    ..Default::default()
                 },
             )
         } else {
