@@ -369,7 +369,11 @@ impl BackgroundModel {
         }
     }
 
-    fn check_size(&self, frame_index: u32, image: &RgbImage) -> Result<()> {
+    /// An error naming frame `frame_index` when `image` is not of the model's size.
+    ///
+    /// # Errors
+    /// [`Error::FrameSize`].
+    pub(crate) fn check_size(&self, frame_index: u32, image: &RgbImage) -> Result<()> {
         if image.dimensions() != (self.width, self.height) {
             return Err(Error::FrameSize {
                 frame: frame_index,

@@ -373,14 +373,9 @@ impl WithDots {
     /// # Errors
     /// A frame of another size than the background model's.
     fn add_dots(&mut self, frame: &Frame, mut found: FrameDetections) -> Result<FrameDetections> {
-        let expected = self.background.background().size();
-        if frame.image.dimensions() != expected {
-            return Err(Error::FrameSize {
-                frame: frame.index,
-                got: frame.image.dimensions(),
-                expected,
-            });
-        }
+        self.background
+            .background()
+            .check_size(frame.index, &frame.image)?;
         let dots = find_dots(
             &frame.image,
             self.background.background().mean(),

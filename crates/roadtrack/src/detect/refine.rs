@@ -173,57 +173,40 @@ pub(crate) fn refine_box(
     let (ww, wh) = (x1 - x0, y1 - y0);
     let px = image.as_raw();
     let test = cfg.pixel_test();
-    // Per window pixel: differs and is not shadow.
-    let set: Vec<bool> = (0..ww * wh)
-        .map(|k| {
-            let i = (y0 + k / ww) * w + x0 + k % ww;
-            matches!(
-                classify(&px[3 * i..3 * i + 3], &mean[3 * i..3 * i + 3], &test),
-                Some((_, false))
-            )
-        })
-        .collect();
+    // The window's pixels that differ and are not shadow.
+    let set = image::GrayImage::from_fn(ww as u32, wh as u32, |x, y| {
+        let i = (y0 + y as usize) * w + x0 + x as usize;
+        let fg = matches!(
+            classify(&px[3 * i..3 * i + 3], &mean[3 * i..3 * i + 3], &test),
+            Some((_, false))
+        );
+        image::Luma([if fg { 255 } else { 0 }])
+    });
     // The core, in window coordinates, at least one pixel each way.
     let side = |lo: f64, len: f64, origin: usize, n: usize| {
         let a = (lo + len * (1.0 - cfg.core) / 2.0).floor().max(0.0) as usize;
         let b = (lo + len * (1.0 + cfg.core) / 2.0).ceil().max(0.0) as usize;
         let a = a.saturating_sub(origin).min(n - 1);
-        (a, b.saturating_sub(origin).clamp(a + 1, n))
+        (a as u32, b.saturating_sub(origin).clamp(a + 1, n) as u32)
     };
     let (cx0, cx1) = side(bbox.left, bbox.width, x0, ww);
     let (cy0, cy1) = side(bbox.top, bbox.height, y0, wh);
-    let mut seen = vec![false; ww * wh];
-    let mut stack: Vec<usize> = Vec::new();
-    for y in cy0..cy1 {
-        for x in cx0..cx1 {
-            let k = y * ww + x;
-            if set[k] {
-                seen[k] = true;
-                stack.push(k);
+    // The bounding box of the 8-connected components with a pixel in the core.
+    let (mut l, mut t, mut r, mut b) = (u32::MAX, u32::MAX, 0, 0);
+    for runs in super::regions::component_runs(&set) {
+        let in_core = runs
+            .iter()
+            .any(|&(y, a, e)| (cy0..cy1).contains(&y) && a < cx1 && e > cx0);
+        if in_core {
+            for &(y, a, e) in &runs {
+                (l, t, r, b) = (l.min(a), t.min(y), r.max(e), b.max(y + 1));
             }
         }
     }
-    if stack.is_empty() {
+    if l == u32::MAX {
         return None;
     }
-    let (mut l, mut t, mut r, mut b) = (usize::MAX, usize::MAX, 0, 0);
-    while let Some(k) = stack.pop() {
-        let (x, y) = (k % ww, k / ww);
-        (l, t, r, b) = (l.min(x), t.min(y), r.max(x + 1), b.max(y + 1));
-        for dy in -1i64..=1 {
-            for dx in -1i64..=1 {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx < 0 || ny < 0 || nx >= ww as i64 || ny >= wh as i64 {
-                    continue;
-                }
-                let n = ny as usize * ww + nx as usize;
-                if set[n] && !seen[n] {
-                    seen[n] = true;
-                    stack.push(n);
-                }
-            }
-        }
-    }
+    let (l, t, r, b) = (l as usize, t as usize, r as usize, b as usize);
     let refined = BBox::new(
         (x0 + l) as f64,
         (y0 + t) as f64,
@@ -274,14 +257,9 @@ impl RefinedBoxes {
     /// # Errors
     /// A frame of another size than the background model's.
     fn refine(&mut self, frame: &Frame, mut found: FrameDetections) -> Result<FrameDetections> {
-        let expected = self.background.background().size();
-        if frame.image.dimensions() != expected {
-            return Err(Error::FrameSize {
-                frame: frame.index,
-                got: frame.image.dimensions(),
-                expected,
-            });
-        }
+        self.background
+            .background()
+            .check_size(frame.index, &frame.image)?;
         let mean = self.background.background().mean();
         for d in &mut found.detections {
             if !self.config.pedestrians && d.class == Some(ObjectClass::Pedestrian) {
