@@ -114,6 +114,49 @@ macro_rules! detector_after_inner {
 }
 pub(crate) use detector_after_inner;
 
+/// A wrapper of another detector (`inner`) with a background model beside it and a config
+/// checked when built: the struct, its `Debug` (the config) and `new`
+/// ([`motion_gate::MotionGated`], [`refine::RefinedBoxes`]). The attributes given (the
+/// struct's documentation) go on the struct.
+macro_rules! background_wrapper {
+    ($(#[$attr:meta])* $name:ident, $config:ty) => {
+        $(#[$attr])*
+        pub struct $name {
+            inner: Box<dyn super::Detector>,
+            background: super::background::BackgroundDetector,
+            config: $config,
+        }
+
+        impl std::fmt::Debug for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.debug_struct(stringify!($name))
+                    .field("config", &self.config)
+                    .finish_non_exhaustive()
+            }
+        }
+
+        impl $name {
+            /// `inner` with `background`'s model (already started on the input) beside it.
+            ///
+            /// # Errors
+            /// An invalid configuration.
+            pub fn new(
+                inner: Box<dyn super::Detector>,
+                background: super::background::BackgroundDetector,
+                config: $config,
+            ) -> crate::error::Result<Self> {
+                config.validate()?;
+                Ok(Self {
+                    inner,
+                    background,
+                    config,
+                })
+            }
+        }
+    };
+}
+pub(crate) use background_wrapper;
+
 /// `detector`'s [`Detector::detect_batch`] on `frames`, checked to give one result per frame.
 ///
 /// # Errors

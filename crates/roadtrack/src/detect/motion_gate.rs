@@ -9,9 +9,8 @@
 //! first frame) are dropped with the clutter: the gate is for fixed cameras and moving
 //! traffic, and off unless asked for.
 
-use super::background::BackgroundDetector;
+use super::FrameDetections;
 use super::nested::{NestedConfig, drop_nested_detections};
-use super::{Detector, FrameDetections};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::geometry::BBox;
@@ -75,41 +74,15 @@ pub fn foreground_fraction(mask: &GrayImage, bbox: &BBox) -> f64 {
     set as f64 / f64::from((x1 - x0) * (y1 - y0))
 }
 
-/// `inner`'s detections where the background detector sees motion (module documentation).
-/// The result carries the background detector's foreground mask; detections are numbered
-/// `1..` again after the gate.
-pub struct MotionGated {
-    inner: Box<dyn Detector>,
-    background: BackgroundDetector,
-    config: MotionGateConfig,
-}
-
-impl std::fmt::Debug for MotionGated {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MotionGated")
-            .field("config", &self.config)
-            .finish_non_exhaustive()
-    }
-}
+super::background_wrapper!(
+    /// `inner`'s detections where the background detector sees motion (module documentation).
+    /// The result carries the background detector's foreground mask; detections are numbered
+    /// `1..` again after the gate.
+    MotionGated,
+    MotionGateConfig
+);
 
 impl MotionGated {
-    /// `inner` gated by `background` (its model already started on the input).
-    ///
-    /// # Errors
-    /// An invalid configuration.
-    pub fn new(
-        inner: Box<dyn Detector>,
-        background: BackgroundDetector,
-        config: MotionGateConfig,
-    ) -> Result<Self> {
-        config.validate()?;
-        Ok(Self {
-            inner,
-            background,
-            config,
-        })
-    }
-
     /// `found` gated by the background detector's mask of `frame`; learns the frame.
     fn after(&mut self, frame: &Frame, found: FrameDetections) -> Result<FrameDetections> {
         let mask = self.background.process(frame)?.mask;
@@ -143,7 +116,8 @@ super::detector_after_inner!(MotionGated, after);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::background::BackgroundDetectorConfig;
+    use crate::detect::Detector;
+    use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
     use crate::detection::Detection;
     use crate::geometry::Point;
     use image::Luma;

@@ -27,9 +27,8 @@
 //! whole frame, bounds the joining, and the growth test refuses a box that took in a
 //! neighbour (two people side by side, two cars nose to tail, far cars a few px apart).
 
-use super::background::BackgroundDetector;
+use super::FrameDetections;
 use super::dots::{PixelTest, classify};
-use super::{Detector, FrameDetections};
 use crate::class::ObjectClass;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -313,40 +312,14 @@ impl Window {
     }
 }
 
-/// Another detector's boxes, each fitted to the pixels that differ from a background model
-/// (module documentation).
-pub struct RefinedBoxes {
-    inner: Box<dyn Detector>,
-    background: BackgroundDetector,
-    config: RefineConfig,
-}
-
-impl std::fmt::Debug for RefinedBoxes {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RefinedBoxes")
-            .field("config", &self.config)
-            .finish_non_exhaustive()
-    }
-}
+super::background_wrapper!(
+    /// Another detector's boxes, each fitted to the pixels that differ from a background model
+    /// (module documentation).
+    RefinedBoxes,
+    RefineConfig
+);
 
 impl RefinedBoxes {
-    /// `inner`'s boxes refined against `background`'s model (already started on the input).
-    ///
-    /// # Errors
-    /// An invalid configuration.
-    pub fn new(
-        inner: Box<dyn Detector>,
-        background: BackgroundDetector,
-        config: RefineConfig,
-    ) -> Result<Self> {
-        config.validate()?;
-        Ok(Self {
-            inner,
-            background,
-            config,
-        })
-    }
-
     /// `found` with its boxes refined against the model; learns the frame.
     ///
     /// # Errors
@@ -379,7 +352,8 @@ super::detector_after_inner!(RefinedBoxes, refine);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::background::BackgroundDetectorConfig;
+    use crate::detect::Detector;
+    use crate::detect::background::{BackgroundDetector, BackgroundDetectorConfig};
     use crate::detection::Detection;
     use image::Rgb;
     use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};
