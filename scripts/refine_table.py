@@ -19,7 +19,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import mog2_norfair  # noqa: E402
 import norfair_peer  # noqa: E402
-from video_tracking_table import evaluate, run, sequence  # noqa: E402
+from video_tracking_table import evaluate, print_means, run, sequence  # noqa: E402
 
 DOTS = ["--confirm-hits", "32", "--orient-walkers", "--smooth-robust", "--smooth-boxes", "12",
         "--smooth-vehicle-boxes", "5"]
@@ -87,13 +87,8 @@ def main():
             cells = " | ".join(f"{v:.3f}" for v in row)
             print(f"| {sv} | {seed} | {method} | {cells} |", flush=True)
     print()
-    print(f"Means over seeds {a.seeds}:")
-    print()
-    print("| scene | " + " | ".join(COLUMNS) + " |")
-    print("| --- |" + " ---: |" * len(COLUMNS))
-    for sv, rows in means.items():
-        cells = " | ".join(f"{sum(c) / len(c):.3f}" for c in zip(*rows))
-        print(f"| {sv} | {cells} |")
+    print_means(f"Means over seeds {a.seeds}:", ["scene"], COLUMNS,
+                [([sv], [sum(c) / len(c) for c in zip(*rows)]) for sv, rows in means.items()])
 
 
 if __name__ == "__main__":

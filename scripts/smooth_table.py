@@ -18,7 +18,8 @@ import sys
 from collections import defaultdict
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from video_tracking_table import KEYS, METHODS, add_common_arguments, evaluate, run  # noqa: E402
+from video_tracking_table import (  # noqa: E402
+    KEYS, METHODS, add_common_arguments, evaluate, print_means, run)
 
 VARIANTS = [("off (--smooth-boxes 0)", ["--smooth-boxes", "0"]), ("default", [])]
 
@@ -44,13 +45,10 @@ def main():
                         run([rt, "-q", "track", seq, "--method", method, "--detector", "file",
                              *extra, *flags, "--seed", "0", "-o", t])
                         results[(f"{scene}/{view}", method, name)].append(evaluate(rt, seq, t))
-    print(f"Means over seeds {a.seeds}, public detections:")
-    print()
-    print("| scene | method | smoothing | " + " | ".join(KEYS) + " |")
-    print("| --- | --- | --- |" + " ---: |" * len(KEYS))
-    for (sv, method, name), ms in results.items():
-        cells = " | ".join(f"{sum(m[k] for m in ms) / len(ms):.3f}" for k in KEYS)
-        print(f"| {sv} | {method} | {name} | {cells} |", flush=True)
+    print_means(f"Means over seeds {a.seeds}, public detections:",
+                ["scene", "method", "smoothing"], KEYS,
+                [(key, [sum(m[k] for m in ms) / len(ms) for k in KEYS])
+                 for key, ms in results.items()])
 
 
 if __name__ == "__main__":

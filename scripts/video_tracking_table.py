@@ -50,6 +50,17 @@ def evaluate(rt, seq, tracks):
     return {k: float(m[k]) for k in KEYS}
 
 
+def print_means(title, labels, columns, rows):
+    """A means table in markdown: `title`, a blank line, the header (text columns `labels`,
+    number columns `columns`), then each row of `rows`, a (label cells, numbers) pair."""
+    print(title)
+    print()
+    print("| " + " | ".join([*labels, *columns]) + " |")
+    print("|" + " --- |" * len(labels) + " ---: |" * len(columns))
+    for cells, values in rows:
+        print("| " + " | ".join([*cells, *(f"{v:.3f}" for v in values)]) + " |", flush=True)
+
+
 def sequence(rt, work, scene, view, seed, frames):
     """The simulated sequence folder `work/scene-view-seed`, simulated first if missing."""
     seq = f"{work}/{scene}-{view}-{seed}"
@@ -122,15 +133,10 @@ def main():
                     cells = " | ".join(f"{m[k]:.3f}" for k in KEYS)
                     print(f"| {sv} | {seed} | {name} | {cells} |", flush=True)
     print()
-    print(f"Means over seeds {a.seeds}:")
-    print()
-    print("| scene | tracker | " + " | ".join(KEYS) + " |")
-    print("| --- | --- |" + " ---: |" * len(KEYS))
-    means = {}
-    for (sv, name), ms in results.items():
-        means[(sv, name)] = {k: sum(m[k] for m in ms) / len(ms) for k in KEYS}
-        cells = " | ".join(f"{means[(sv, name)][k]:.3f}" for k in KEYS)
-        print(f"| {sv} | {name} | {cells} |")
+    means = {key: {k: sum(m[k] for m in ms) / len(ms) for k in KEYS}
+             for key, ms in results.items()}
+    print_means(f"Means over seeds {a.seeds}:", ["scene", "tracker"], KEYS,
+                [(key, [m[k] for k in KEYS]) for key, m in means.items()])
     print()
     print("| scene | MOG2 + norfair HOTA | best roadtrack | HOTA | ratio |")
     print("| --- | ---: | --- | ---: | ---: |")
