@@ -403,7 +403,8 @@ pub struct DetectorArgs {
     #[arg(long)]
     pub dots: bool,
     /// Fit each box of the detector (not pedestrians') to the pixels that differ from a
-    /// background model learnt from the input: tighter vehicle boxes on a fixed camera
+    /// background model learnt from the input, or, for a vehicle the model has absorbed
+    /// (parked, queued), from the road around it: tighter vehicle boxes on a fixed camera
     /// (docs/DETECTION.md "Refined boxes"). Off by default.
     #[arg(long)]
     pub refine_boxes: bool,
@@ -501,7 +502,7 @@ impl DetectorArgs {
                 // Never gated (refused above).
                 let cfg = background()?;
                 let spec = DetectorSpec::Background(cfg.clone());
-                return self.with_dots(spec, calibration, || Ok(cfg));
+                return self.with_dots_and_fit(spec, calibration, || Ok(cfg));
             }
             DetectorArg::File => {
                 let path = match &self.detections {
@@ -535,19 +536,19 @@ impl DetectorArgs {
             }
         };
         let Some(mut gate) = gate else {
-            return self.with_dots(spec, calibration, background);
+            return self.with_dots_and_fit(spec, calibration, background);
         };
         if kind == DetectorArg::Cnn {
             gate.nested = self.onnx.gate_nested();
         }
         let cfg = background()?;
         let gated = DetectorSpec::MotionGated(Box::new(spec), cfg.clone(), gate);
-        self.with_dots(gated, calibration, || Ok(cfg))
+        self.with_dots_and_fit(gated, calibration, || Ok(cfg))
     }
 
     /// `spec` with `--dots` and `--refine-boxes` added when asked for (the dots against the
     /// detector's own boxes, then the boxes refined).
-    fn with_dots(
+    fn with_dots_and_fit(
         &self,
         spec: roadtrack::detect::DetectorSpec,
         calibration: Option<&roadtrack::calibration::Calibration>,
