@@ -26,6 +26,12 @@ pub fn clean_mask(mask: &image::GrayImage, config: &RegionConfig) -> image::Gray
     m.unpack()
 }
 
+/// Opening of `mask` by a square of radius `r` (erosion, then dilation): as [`clean_mask`]
+/// with no closing.
+pub(crate) fn open(mask: &image::GrayImage, r: u32) -> image::GrayImage {
+    BitMask::pack(mask).erode(r).dilate(r).unpack()
+}
+
 /// A binary mask, one bit per pixel: row `y`'s pixel `x` is bit `x % 64` of word
 /// `y · words_per_row + x / 64`. Bits past the width are always 0.
 #[derive(Clone, Debug, PartialEq)]
