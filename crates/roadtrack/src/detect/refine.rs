@@ -536,11 +536,11 @@ mod tests {
             refine_box(&img, &absorbed, &found, &cfg),
             Some(BBox::new(20.0, 10.0, 14.0, 6.0))
         );
-        let closed = RefineConfig {
+        let unopened = RefineConfig {
             ring_open_px: 0,
             ..cfg.clone()
         };
-        assert_eq!(refine_box(&img, &absorbed, &found, &closed), None);
+        assert_eq!(refine_box(&img, &absorbed, &found, &unopened), None);
         // An opened fit that grows a side past 1.1 times the detector's is not taken.
         let small = BBox::new(22.0, 10.5, 12.0, 5.0);
         assert_eq!(refine_box(&img, &absorbed, &small, &cfg), None);
