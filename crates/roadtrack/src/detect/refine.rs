@@ -282,6 +282,28 @@ impl Window {
         }))
     }
 
+    /// The window's pixels (255, window coordinates) that differ from `mu(pixel index)`
+    /// and are not shadow.
+    fn differing(
+        &self,
+        image: &RgbImage,
+        cfg: &RefineConfig,
+        mu: impl Fn(usize) -> [f32; 3],
+    ) -> image::GrayImage {
+        let w = image.width() as usize;
+        let px = image.as_raw();
+        let test = cfg.pixel_test();
+        let (x0, y0) = (self.x0, self.y0);
+        image::GrayImage::from_fn((self.x1 - x0) as u32, (self.y1 - y0) as u32, |x, y| {
+            let i = (y0 + y as usize) * w + x0 + x as usize;
+            let fg = matches!(
+                classify(&px[3 * i..3 * i + 3], &mu(i), &test),
+                Some((_, false))
+            );
+            image::Luma([if fg { 255 } else { 0 }])
+        })
+    }
+
     /// `bbox` fitted in the window to the pixels that differ from `mu(pixel index)`, opened
     /// by a square of radius `open_px` first (0: not).
     fn fit(
@@ -292,20 +314,9 @@ impl Window {
         open_px: u8,
         mu: impl Fn(usize) -> [f32; 3],
     ) -> Fit {
-        let w = image.width() as usize;
         let (x0, y0) = (self.x0, self.y0);
         let (ww, wh) = (self.x1 - x0, self.y1 - y0);
-        let px = image.as_raw();
-        let test = cfg.pixel_test();
-        // The window's pixels that differ and are not shadow.
-        let set = image::GrayImage::from_fn(ww as u32, wh as u32, |x, y| {
-            let i = (y0 + y as usize) * w + x0 + x as usize;
-            let fg = matches!(
-                classify(&px[3 * i..3 * i + 3], &mu(i), &test),
-                Some((_, false))
-            );
-            image::Luma([if fg { 255 } else { 0 }])
-        });
+        let set = self.differing(image, cfg, mu);
         let set = if open_px > 0 {
             super::morphology::open(&set, u32::from(open_px))
         } else {
@@ -497,18 +508,14 @@ mod tests {
 
     /// The pixels of `img` that differ from `mean` and are not shadow, 255.
     fn mask_of(img: &RgbImage, mean: &[f32]) -> image::GrayImage {
-        let test = RefineConfig::default().pixel_test();
-        image::GrayImage::from_fn(img.width(), img.height(), |x, y| {
-            let i = (y * img.width() + x) as usize;
-            let fg = matches!(
-                classify(
-                    img.get_pixel(x, y).0.as_slice(),
-                    &mean[3 * i..3 * i + 3],
-                    &test
-                ),
-                Some((_, false))
-            );
-            image::Luma([if fg { 255 } else { 0 }])
+        let whole = Window {
+            x0: 0,
+            y0: 0,
+            x1: img.width() as usize,
+            y1: img.height() as usize,
+        };
+        whole.differing(img, &RefineConfig::default(), |i| {
+            [mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]]
         })
     }
 
