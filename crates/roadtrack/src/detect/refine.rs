@@ -175,49 +175,22 @@ pub(crate) fn refine_box(
     cfg: &RefineConfig,
 ) -> Option<BBox> {
     let window = Window::around(image, bbox, cfg)?;
-    let px = image.as_raw();
-    match window.fit(image, bbox, cfg, 0, |i| {
+    let seen = window.differing(image, cfg, |i| {
         [mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]]
-    }) {
+    });
+    match window.fit(bbox, cfg, &seen) {
         Fit::Box(b) => Some(b),
         Fit::Refused => None,
         // Choice: only a box the model cannot see is fitted against its surroundings. One the
         // model sees but refuses (grown into a neighbour, moved off) keeps the detector's
         // box: against the ring those fits lost on the aerial road (docs/EXPERIMENTS.md
         // "Vehicles the background model has absorbed").
-        Fit::Unseen if cfg.ring_px > 0 => {
-            let road = window.ring_median(px, image.width() as usize, cfg.ring_px as usize)?;
-            // Choice: only against the ring, and only when the plain fit grew or moved off,
-            // is the mask opened. Road markings match the background model, so the model's
-            // fit never joins them; against one road colour a stop bar joined a standing bus
-            // to the zebra (aerial junction seed 3: an 18 px high fit, refused, and the
-            // detector's box 5 px too high kept). Opening every ring fit cut cars whose
-            // dark windows split them into thin strips (aerial junction seeds 4-6 lost).
-            match window.fit(image, bbox, cfg, 0, |_| road) {
-                Fit::Box(b) => Some(b),
-                Fit::Refused if cfg.ring_open_px > 0 => {
-                    match window.fit(image, bbox, cfg, cfg.ring_open_px, |_| road) {
-                        // Choice: the opened fit must tighten the box, not grow it past
-                        // OPENED_MAX_GROWTH: one that does still holds a neighbour, and
-                        // from the side such fits (queued cars 50 px long, overlapping)
-                        // lost on the oblique junction.
-                        Fit::Box(b)
-                            if b.width <= OPENED_MAX_GROWTH * bbox.width
-                                && b.height <= OPENED_MAX_GROWTH * bbox.height =>
-                        {
-                            Some(b)
-                        }
-                        Fit::Box(_) | Fit::Unseen | Fit::Refused => None,
-                    }
-                }
-                Fit::Unseen | Fit::Refused => None,
-            }
-        }
+        Fit::Unseen if cfg.ring_px > 0 => window.fit_to_ring(image, bbox, cfg),
         Fit::Unseen => None,
     }
 }
 
-/// Largest growth of a side of an opened ring fit (see [`refine_box`]).
+/// Largest growth of a side of an opened ring fit (see [`Window::fit_to_ring`]).
 const OPENED_MAX_GROWTH: f64 = 1.1;
 
 /// What [`Window::fit`] found.
@@ -282,6 +255,40 @@ impl Window {
         }))
     }
 
+    /// `bbox` fitted against the median colour of the window's outer `ring_px` px (a
+    /// vehicle the model has absorbed); `None` where there is no ring or the fit is refused.
+    fn fit_to_ring(&self, image: &RgbImage, bbox: &BBox, cfg: &RefineConfig) -> Option<BBox> {
+        let w = image.width() as usize;
+        let road = self.ring_median(image.as_raw(), w, cfg.ring_px as usize)?;
+        let set = self.differing(image, cfg, |_| road);
+        // Choice: only against the ring, and only when the plain fit grew or moved off, is
+        // the mask opened. Road markings match the background model, so the model's fit
+        // never joins them; against one road colour a stop bar joined a standing bus to the
+        // zebra (aerial junction seed 3: an 18 px high fit, refused, and the detector's box
+        // 5 px too high kept). Opening every ring fit cut cars whose dark windows split
+        // them into thin strips (aerial junction seeds 4-6 lost).
+        match self.fit(bbox, cfg, &set) {
+            Fit::Box(b) => Some(b),
+            Fit::Refused if cfg.ring_open_px > 0 => {
+                let opened = super::morphology::open(&set, u32::from(cfg.ring_open_px));
+                match self.fit(bbox, cfg, &opened) {
+                    // Choice: the opened fit must tighten the box, not grow it past
+                    // OPENED_MAX_GROWTH: one that does still holds a neighbour, and from
+                    // the side such fits (queued cars 50 px long, overlapping) lost on the
+                    // oblique junction.
+                    Fit::Box(b)
+                        if b.width <= OPENED_MAX_GROWTH * bbox.width
+                            && b.height <= OPENED_MAX_GROWTH * bbox.height =>
+                    {
+                        Some(b)
+                    }
+                    Fit::Box(_) | Fit::Unseen | Fit::Refused => None,
+                }
+            }
+            Fit::Unseen | Fit::Refused => None,
+        }
+    }
+
     /// The window's pixels (255, window coordinates) that differ from `mu(pixel index)`
     /// and are not shadow.
     fn differing(
@@ -304,24 +311,11 @@ impl Window {
         })
     }
 
-    /// `bbox` fitted in the window to the pixels that differ from `mu(pixel index)`, opened
-    /// by a square of radius `open_px` first (0: not).
-    fn fit(
-        &self,
-        image: &RgbImage,
-        bbox: &BBox,
-        cfg: &RefineConfig,
-        open_px: u8,
-        mu: impl Fn(usize) -> [f32; 3],
-    ) -> Fit {
+    /// `bbox` fitted in the window to the pixels set in `set` (window coordinates, as
+    /// [`Window::differing`] gives them).
+    fn fit(&self, bbox: &BBox, cfg: &RefineConfig, set: &image::GrayImage) -> Fit {
         let (x0, y0) = (self.x0, self.y0);
         let (ww, wh) = (self.x1 - x0, self.y1 - y0);
-        let set = self.differing(image, cfg, mu);
-        let set = if open_px > 0 {
-            super::morphology::open(&set, u32::from(open_px))
-        } else {
-            set
-        };
         // The core, in window coordinates, at least one pixel each way.
         let side = |lo: f64, len: f64, origin: usize, n: usize| {
             let a = (lo + len * (1.0 - cfg.core) / 2.0).floor().max(0.0) as usize;
@@ -333,7 +327,7 @@ impl Window {
         let (cy0, cy1) = side(bbox.top, bbox.height, y0, wh);
         // The bounding box of the 8-connected components with a pixel in the core.
         let (mut l, mut t, mut r, mut b) = (u32::MAX, u32::MAX, 0, 0);
-        for runs in super::regions::component_runs(&set) {
+        for runs in super::regions::component_runs(set) {
             let in_core = runs
                 .iter()
                 .any(|&(y, a, e)| (cy0..cy1).contains(&y) && a < cx1 && e > cx0);
