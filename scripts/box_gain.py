@@ -75,6 +75,7 @@ pedestrian_groups_per_min_per_entry = {d['crossing']['pedestrian_groups_per_min_
 [render]
 noise_sd = {rng.uniform(0.0, 8.0):.3f}
 shadows = {"true" if rng.random() < 0.8 else "false"}
+min_one_pixel = false
 sun_azimuth_deg = {rng.uniform(0.0, 360.0):.2f}
 sun_elevation_deg = {rng.uniform(25.0, 80.0):.2f}
 """, f"{scene}/{view}"

@@ -637,6 +637,8 @@ impl SceneRenderer {
             );
             let tag = idx as u32;
             let mut outline: Vec<[f64; 2]> = Vec::new();
+            // The largest visible face: (projected area, centroid u, v, depth, colour).
+            let mut largest: Option<(f64, [f64; 3], [u8; 3])> = None;
             for f in faces {
                 let poly = camera.project_polygon(&f.points);
                 for p in &poly {
@@ -656,6 +658,14 @@ impl SceneRenderer {
                             + f.normal[2] * self.sun[2])
                             .max(0.0);
                 let rgb = f.rgb.map(|c| (c * light as f32).min(255.0) as u8);
+                let area = polygon_area(&poly.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>());
+                if !poly.is_empty() && largest.as_ref().is_none_or(|l| area > l.0) {
+                    let n = poly.len() as f64;
+                    let c = poly
+                        .iter()
+                        .fold([0.0; 3], |c, p| [c[0] + p.0, c[1] + p.1, c[2] + p.2]);
+                    largest = Some((area, c.map(|v| v / n), rgb));
+                }
                 let (qbuf, owner, stamp) = (&mut self.qbuf, &mut self.owner, &mut self.stamp);
                 fill_convex(&poly, w, h, |i, q| {
                     if stamp[i] != tag {
@@ -668,6 +678,20 @@ impl SceneRenderer {
                         img[i * 3..i * 3 + 3].copy_from_slice(&rgb);
                     }
                 });
+            }
+            if own == 0 && self.config.min_one_pixel {
+                if let Some((_, [u, v, q], rgb)) = largest {
+                    if (0.0..w as f64).contains(&u) && (0.0..h as f64).contains(&v) {
+                        let i = v as usize * w + u as usize;
+                        own = 1;
+                        self.stamp[i] = tag;
+                        if (q as f32) > self.qbuf[i] {
+                            self.qbuf[i] = q as f32;
+                            self.owner[i] = tag;
+                            img[i * 3..i * 3 + 3].copy_from_slice(&rgb);
+                        }
+                    }
+                }
             }
             let bbox = if u0 <= u1 {
                 let (l, t) = (u0.max(0.0), v0.max(0.0));
@@ -897,6 +921,56 @@ mod tests {
         // Alone again: back to 1, whatever the order of drawing.
         let (_, stats) = r.render(&cam, [0, 0], &[ped], 1, 0.0);
         assert_eq!(stats[0].visibility(), 1.0);
+    }
+
+    /// `min_one_pixel`: a walker seen from above (under a pixel wide) moved over a pixel
+    /// in steps of 0.1 px covers no pixel centre at some steps when point-sampled, and
+    /// then vanishes; with the rule it keeps exactly one pixel there, the pixel under its
+    /// centre, in the walker's colour, and is wholly visible.
+    #[test]
+    fn a_walker_under_a_pixel_wide_keeps_one_pixel() {
+        let (mut r, cam) = setup(ViewKind::Aerial);
+        let metres_per_px = {
+            let (a, _) = cam.project([0.0, 0.0, 0.0]).expect("in view");
+            let (b, _) = cam.project([1.0, 0.0, 0.0]).expect("in view");
+            1.0 / (b - a).abs()
+        };
+        let (mut vanished, mut kept) = (0, 0);
+        for k in 0..100 {
+            let x = 0.1 * f64::from(k % 10) * metres_per_px;
+            let y = 0.1 * f64::from(k / 10) * metres_per_px;
+            // Heading π/2: the walker's 0.3 m length along y, its 0.46 m width along x.
+            let ped = agent(
+                1,
+                ObjectClass::Pedestrian,
+                [x, y],
+                std::f64::consts::FRAC_PI_2,
+            );
+            r.config.min_one_pixel = false;
+            let (_, before) = r.render(&cam, [0, 0], std::slice::from_ref(&ped), 1, 0.0);
+            r.config.min_one_pixel = true;
+            let (img, after) = r.render(&cam, [0, 0], std::slice::from_ref(&ped), 1, 0.0);
+            if before[0].own_px == 0 {
+                vanished += 1;
+                assert_eq!(after[0].own_px, 1, "x = {x}");
+                assert_eq!(after[0].visibility(), 1.0);
+                let (u, v) = cam.project([x, y, 0.0]).expect("in view");
+                let i = v as usize * r.width + u as usize;
+                assert_eq!(r.owner()[i], 0, "x = {x}: the pixel under the walker");
+                let px = img.get_pixel(u as u32, v as u32);
+                assert!(
+                    px[0] > px[1] + 40,
+                    "x = {x}: {px:?} is not the walker's red"
+                );
+            } else {
+                kept += 1;
+                assert_eq!(
+                    after[0], before[0],
+                    "x = {x}: a walker with pixels is unchanged"
+                );
+            }
+        }
+        assert!(vanished > 0 && kept > 0, "{vanished} vanished, {kept} kept");
     }
 
     #[test]
