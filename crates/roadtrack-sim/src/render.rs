@@ -679,18 +679,19 @@ impl SceneRenderer {
                     }
                 });
             }
-            if own == 0 && self.config.min_one_pixel {
-                if let Some((_, [u, v, q], rgb)) = largest {
-                    if (0.0..w as f64).contains(&u) && (0.0..h as f64).contains(&v) {
-                        let i = v as usize * w + u as usize;
-                        own = 1;
-                        self.stamp[i] = tag;
-                        if (q as f32) > self.qbuf[i] {
-                            self.qbuf[i] = q as f32;
-                            self.owner[i] = tag;
-                            img[i * 3..i * 3 + 3].copy_from_slice(&rgb);
-                        }
-                    }
+            if own == 0
+                && self.config.min_one_pixel
+                && let Some((_, [u, v, q], rgb)) = largest
+                && (0.0..w as f64).contains(&u)
+                && (0.0..h as f64).contains(&v)
+            {
+                let i = v as usize * w + u as usize;
+                own = 1;
+                self.stamp[i] = tag;
+                if (q as f32) > self.qbuf[i] {
+                    self.qbuf[i] = q as f32;
+                    self.owner[i] = tag;
+                    img[i * 3..i * 3 + 3].copy_from_slice(&rgb);
                 }
             }
             let bbox = if u0 <= u1 {
