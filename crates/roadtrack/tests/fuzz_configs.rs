@@ -325,10 +325,11 @@ fn filter_track(cases: u32) {
     let people = committed("filters-pedestrians.toml");
     let aerial = committed("phd-aerial.toml");
     let road = committed("phd-road.toml");
+    let public = committed("phd-aerial-public.toml");
     fuzz_config::<FilterTrackConfig>(
         "filter_track",
         cases,
-        &[&people, &aerial, &road],
+        &[&people, &aerial, &road, &public],
         |c| c.validate(),
         &[&format!("phd.{PHD_EXIT_SPEED}")],
     );
@@ -352,6 +353,29 @@ fn committed_aerial_phd_config_loads() {
     want.detections.clutter_per_frame = 5.0;
     assert_ne!(want, FilterTrackConfig::default());
     assert_eq!(aerial, want);
+}
+
+/// configs/phd-aerial-public.toml loads, validates and differs from the default in the
+/// fields its comments name, and only there.
+#[test]
+fn committed_aerial_public_phd_config_loads() {
+    let public = load_committed("phd-aerial-public.toml", FilterTrackConfig::validate);
+    let mut want = FilterTrackConfig {
+        count_lag_frames: 1,
+        ..FilterTrackConfig::default()
+    };
+    want.phd.motion = ConstantVelocity::proportional(0.2, 0.05);
+    want.phd.birth_speed_sigma = 0.4;
+    want.phd.birth_speed_box_fraction = 0.22;
+    want.phd.survival_prob = 0.995;
+    want.phd.birth_rate = 0.5;
+    want.detections.phd_write_detection_centre = true;
+    want.detections.min_sigma_px = 1.0;
+    want.detections.sigma_box_fraction = 0.05;
+    want.detections.detection_prob = 0.95;
+    want.detections.clutter_per_frame = 0.5;
+    assert_ne!(want, FilterTrackConfig::default());
+    assert_eq!(public, want);
 }
 
 /// configs/phd-road.toml is the PHD part of filters-pedestrians.toml with the two fields of
