@@ -361,7 +361,7 @@ fn committed_aerial_phd_config_loads() {
 fn committed_aerial_public_phd_config_loads() {
     let public = load_committed("phd-aerial-public.toml", FilterTrackConfig::validate);
     let mut want = FilterTrackConfig {
-        count_lag_frames: 1,
+        count_lag_frames: 2,
         ..FilterTrackConfig::default()
     };
     want.phd.motion = ConstantVelocity::proportional(0.2, 0.05);

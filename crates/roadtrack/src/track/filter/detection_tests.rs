@@ -575,7 +575,7 @@ fn the_road_config_counts_the_far_cars_of_the_oblique_road() -> Result<()> {
 /// configs/phd-aerial-public.toml on the aerial intersection's public detections, where
 /// walkers are dots 0.9 × 1.4 px: the smoothed count within 0.5 of the truth, and closer
 /// than counting the detections or the pedestrian file (docs/EXPERIMENTS.md "Walkers under
-/// a pixel"; seeds 1–3, 300 frames, from the command line: 0.16–0.20, the detections
+/// a pixel"; seeds 1–3, 300 frames, from the command line: 0.07–0.11, the detections
 /// 1.3–2.0).
 #[test]
 fn the_aerial_public_config_counts_the_walkers_seen_from_above() -> Result<()> {
