@@ -189,7 +189,7 @@ pub fn random_sim_config(rng: &mut impl rand::Rng, data: &DataConfig) -> SimConf
     c.render.sun_azimuth_deg = scale(rng, 0.0, 360.0);
     c.render.sun_elevation_deg = scale(rng, 25.0, 80.0);
     // Choice: point-sampled frames, as every shipped model was trained on, so that
-    // `scripts/setup.sh --models` still rebuilds models/detector.onnx byte for byte.
+    // `scripts/setup.sh --models` trains models/detector.onnx on the same frames.
     // Walkers under a pixel then vanish from some training frames and their labels alike
     // (docs/SIMULATOR.md "Objects under a pixel"); a model trained with the rule is a
     // retrain of its own.
