@@ -30,6 +30,7 @@ pub mod external;
 mod output;
 mod pairs;
 pub mod points;
+mod raster;
 pub mod render;
 pub mod scene;
 #[cfg(feature = "testkit")]
