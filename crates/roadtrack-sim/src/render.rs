@@ -579,8 +579,6 @@ impl SceneRenderer {
             );
             let tag = idx as u32;
             let mut outline: Vec<[f64; 2]> = Vec::new();
-            // The largest visible face: (projected area, centroid u, v, depth, colour).
-            let mut largest: Option<(f64, [f64; 3], [u8; 3])> = None;
             for f in faces {
                 let poly = camera.project_polygon(&f.points);
                 for p in &poly {
@@ -593,21 +591,7 @@ impl SceneRenderer {
                 if !camera.sees_face(f.points[0], f.normal) {
                     continue;
                 }
-                let light = 0.52
-                    + 0.48
-                        * (f.normal[0] * self.sun[0]
-                            + f.normal[1] * self.sun[1]
-                            + f.normal[2] * self.sun[2])
-                            .max(0.0);
-                let rgb = f.rgb.map(|c| (c * light as f32).min(255.0) as u8);
-                let area = polygon_area(&poly.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>());
-                if !poly.is_empty() && largest.as_ref().is_none_or(|l| area > l.0) {
-                    let n = poly.len() as f64;
-                    let c = poly
-                        .iter()
-                        .fold([0.0; 3], |c, p| [c[0] + p.0, c[1] + p.1, c[2] + p.2]);
-                    largest = Some((area, c.map(|v| v / n), rgb));
-                }
+                let rgb = self.shade(f);
                 let (qbuf, owner, stamp) = (&mut self.qbuf, &mut self.owner, &mut self.stamp);
                 fill_convex(&poly, w, h, |i, q| {
                     if stamp[i] != tag {
@@ -623,7 +607,7 @@ impl SceneRenderer {
             }
             if own == 0
                 && self.config.min_one_pixel
-                && let Some((_, [u, v, q], rgb)) = largest
+                && let Some(([u, v, q], rgb)) = self.largest_face_centre(camera, faces)
                 && (0.0..w as f64).contains(&u)
                 && (0.0..h as f64).contains(&v)
             {
@@ -669,6 +653,42 @@ impl SceneRenderer {
         }
         let image = RgbImage::from_raw(w as u32, h as u32, img).unwrap_or_default();
         (image, stats)
+    }
+
+    /// `f`'s colour under the sun: ambient 0.52 plus 0.48 of the direct light.
+    fn shade(&self, f: &Face) -> [u8; 3] {
+        let light = 0.52
+            + 0.48
+                * (f.normal[0] * self.sun[0]
+                    + f.normal[1] * self.sun[1]
+                    + f.normal[2] * self.sun[2])
+                    .max(0.0);
+        f.rgb.map(|c| (c * light as f32).min(255.0) as u8)
+    }
+
+    /// The centroid (`u, v, q` of its projected corners) and colour of the largest face of
+    /// `faces` the camera sees (the first of equals), for an object that covers no pixel
+    /// centre (`min_one_pixel`).
+    fn largest_face_centre(&self, camera: &Camera, faces: &[Face]) -> Option<([f64; 3], [u8; 3])> {
+        let mut largest: Option<(f64, [f64; 3], [u8; 3])> = None;
+        for f in faces
+            .iter()
+            .filter(|f| camera.sees_face(f.points[0], f.normal))
+        {
+            let poly = camera.project_polygon(&f.points);
+            if poly.is_empty() {
+                continue;
+            }
+            let area = polygon_area(&poly.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>());
+            if largest.as_ref().is_none_or(|l| area > l.0) {
+                let n = poly.len() as f64;
+                let c = poly
+                    .iter()
+                    .fold([0.0; 3], |c, p| [c[0] + p.0, c[1] + p.1, c[2] + p.2]);
+                largest = Some((area, c.map(|v| v / n), self.shade(f)));
+            }
+        }
+        largest.map(|(_, c, rgb)| (c, rgb))
     }
 
     /// Illumination drift and sensor noise, in place.
