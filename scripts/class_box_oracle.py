@@ -76,7 +76,10 @@ def matches(rows, truth, a):
             for b in boxes
         ]
         ok = lambda v: v < a.radius  # noqa: E731
-    r, c = linear_sum_assignment(cost)
+    # Pairs that fail the test cost more than any that pass, so the assignment makes as many
+    # good pairs as it can (a plain sum could trade one good pair for two poor ones).
+    gated = [[v if ok(v) else 1e6 for v in row] for row in cost]
+    r, c = linear_sum_assignment(gated)
     return {i: truth[j] for i, j in zip(r, c) if ok(cost[i][j])}
 
 

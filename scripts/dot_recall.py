@@ -42,7 +42,10 @@ def main():
             continue
         centres = np.stack([g[:, 2] + g[:, 4] / 2, g[:, 3] + g[:, 5] / 2], 1)
         cost = np.hypot(centres[:, None, 0] - d[None, :, 1], centres[:, None, 1] - d[None, :, 2])
-        r, c = linear_sum_assignment(cost)
+        # Pairs beyond the radius cost more than any within it, so the assignment makes as
+        # many pairs within the radius as it can (a plain sum of distances could trade a
+        # close pair for two distant ones).
+        r, c = linear_sum_assignment(np.where(cost < a.radius, cost, 1e6))
         ok = cost[r, c] < a.radius
         found += int(ok.sum())
         dist.extend(cost[r, c][ok])
