@@ -481,7 +481,11 @@ pub(crate) fn find_dots(
     );
     let offset = shadows.offset().unwrap_or(Point::new(0.0, 0.0));
     dots.extend(dark.into_iter().map(|(c, weight, area_px)| Dot {
-        centre: Point::new(c.x - offset.x, c.y - offset.y),
+        // A blob at the frame's edge keeps its object in the frame.
+        centre: Point::new(
+            (c.x - offset.x).clamp(0.0, w as f64),
+            (c.y - offset.y).clamp(0.0, h as f64),
+        ),
         weight,
         area_px,
     }));
@@ -877,8 +881,8 @@ mod tests {
         );
         assert!(walkers.len() >= 400, "{} walker boxes", walkers.len());
         // Measured 0.92 / 0.93 on these frames (0.90 / 0.93 without dark dots; not
-        // JPEG-compressed; 0.78 / 0.78 on the written JPEG sequences, docs/DETECTION.md
-        // "Dots").
+        // JPEG-compressed; 0.85 / 0.85 on the written JPEG sequence of seed 1, paired one
+        // to one, docs/DETECTION.md "Dots").
         assert!(
             recall >= 0.8 && precision >= 0.8,
             "R {recall:.2} P {precision:.2}"
