@@ -563,21 +563,18 @@ impl DetectorArgs {
             DetectorSpec::WithDots(
                 Box::new(spec),
                 cfg.clone(),
-                roadtrack::detect::dots::DotConfig::default(),
+                cfg.dots.clone(),
                 calibration.map(|c| Box::new(c.clone())),
             )
         } else {
             spec
         };
+        let refine = roadtrack::detect::refine::RefineConfig {
+            pedestrians: self.refine_pedestrians || cfg.refine.pedestrians,
+            ..cfg.refine.clone()
+        };
         Ok(Some(if self.refine_boxes {
-            DetectorSpec::Refined(
-                Box::new(spec),
-                cfg,
-                roadtrack::detect::refine::RefineConfig {
-                    pedestrians: self.refine_pedestrians,
-                    ..Default::default()
-                },
-            )
+            DetectorSpec::Refined(Box::new(spec), cfg, refine)
         } else {
             spec
         }))

@@ -373,7 +373,7 @@ fn refined_boxes_fit_the_vehicles_better() {
 
 /// `--dots` on a simulated aerial crossing (walkers of 1–2 px, which the network does not
 /// box): the network's boxes and, added, about as many pedestrians as the truth has
-/// walkers; with a calibration in which a walker's footprint is 3.8 px (0.1 m/px) none is
+/// walkers; fewer without dark dots (`[dots]` of `--config`); with a calibration in which a walker's footprint is 3.8 px (0.1 m/px) none is
 /// looked for and the output is the network's byte for byte.
 #[test]
 fn dots_add_the_walkers_too_small_for_the_network() {
@@ -427,6 +427,34 @@ fn dots_add_the_walkers_too_small_for_the_network() {
     assert!(
         (0.7..=1.2).contains(&ratio),
         "{walkers_found} dots for {walkers} walkers"
+    );
+    // `[dots]` of `--config`: without dark dots, a subset of the rows, and fewer; a bad
+    // field is an error naming it.
+    let config = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write config");
+        path.to_str().expect("a UTF-8 temporary path").to_owned()
+    };
+    let no_dark = config("no_dark.toml", "[dots]\ndark_dots = false\n");
+    let light = rows(&detect(
+        &["--dots", "--calibration", cal, "--config", &no_dark],
+        "light.csv",
+    ));
+    assert!(light.iter().all(|r| d.contains(r)));
+    assert!(light.len() < d.len(), "{} of {} rows", light.len(), d.len());
+    let bad = config("bad.toml", "[dots]\ndark_min_area_px = 0\n");
+    let o = bin()
+        .arg("detect")
+        .arg(&seq)
+        .args(["--detector", "cnn", "--dots", "--config", &bad, "-o"])
+        .arg(dir.path().join("bad.csv"))
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("dots.dark_min_area_px"),
+        "{}",
+        stderr(&o)
     );
     let fine = dir.path().join("fine.toml");
     std::fs::write(

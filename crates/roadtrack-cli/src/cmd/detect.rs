@@ -23,7 +23,8 @@ pub struct Args {
     /// Output detections CSV (`-` for standard output).
     #[arg(short, long, default_value = "detections.csv")]
     pub output: PathBuf,
-    /// TOML file with a `BackgroundDetectorConfig` ([background] and [regions] tables).
+    /// TOML file with a `BackgroundDetectorConfig` ([background], [regions] and [split]
+    /// tables; [dots] and [refine] for `--dots` and `--refine-boxes`, with any detector).
     #[arg(long, value_name = "F.toml")]
     pub config: Option<PathBuf>,
     /// Smallest region kept, px² (overrides the config).
@@ -76,7 +77,12 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     if args.detector.is_file() || args.detector.is_onnx() {
         crate::flags::reject_given(
             &[
-                ("--config", args.config.is_some()),
+                // With --dots or --refine-boxes a background model runs beside the detector:
+                // its config (and their `[dots]` and `[refine]` tables) applies.
+                (
+                    "--config",
+                    args.config.is_some() && !args.detector.dots && !args.detector.refine_boxes,
+                ),
                 ("--min-area", args.min_area.is_some()),
                 ("--max-area", args.max_area.is_some()),
                 ("--threshold-sigma", args.threshold_sigma.is_some()),

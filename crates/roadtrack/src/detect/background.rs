@@ -23,6 +23,12 @@ pub struct BackgroundDetectorConfig {
     /// Splitting regions that hold several vehicles (needs `calibration`) or people side by
     /// side (`columns`).
     pub split: SplitConfig,
+    /// Dots found beside another detector (`--dots`, [`super::dots::WithDots`]) against
+    /// this background model. `[dots]` in the TOML.
+    pub dots: super::dots::DotConfig,
+    /// Boxes fitted to the pixels that differ from this background model
+    /// (`--refine-boxes`, [`super::refine::RefinedBoxes`]). `[refine]` in the TOML.
+    pub refine: super::refine::RefineConfig,
     /// The camera's ground calibration, when known (`--calibration`; not part of the TOML):
     /// gives the expected vehicle size for [`SplitConfig`] and the person size for
     /// `regions.min_person_share`.
@@ -43,7 +49,9 @@ impl BackgroundDetectorConfig {
             .validate()
             .map_err(|e| e.in_table("background"))?;
         self.regions.validate().map_err(|e| e.in_table("regions"))?;
-        self.split.validate().map_err(|e| e.in_table("split"))
+        self.split.validate().map_err(|e| e.in_table("split"))?;
+        self.dots.validate().map_err(|e| e.in_table("dots"))?;
+        self.refine.validate().map_err(|e| e.in_table("refine"))
     }
 
     /// The same config with the detector's later additions off (median start-up, no
