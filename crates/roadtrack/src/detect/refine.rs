@@ -141,9 +141,9 @@ impl RefineConfig {
             self.min_iou,
         )?;
         check(
-            self.max_growth >= 1.0,
+            self.max_growth.is_finite() && self.max_growth >= 1.0,
             "max_growth",
-            "1 or more",
+            "a finite number, 1 or more",
             self.max_growth,
         )?;
         check(
