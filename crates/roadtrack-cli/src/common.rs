@@ -262,7 +262,7 @@ pub struct LifecycleArgs {
     /// per-track class (not with --confirm-hits or --coast-frames), relaxation without
     /// its second assignment, and the background detector as it was (median start-up, no
     /// shadow suppression, hold, ghost suppression or region splitting; region centroids).
-    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "smooth_boxes", "smooth_vehicle_boxes", "orient_walkers", "smooth_robust"])]
+    #[arg(long, conflicts_with_all = ["confirm_hits", "coast_frames", "link_gaps", "extend_frames", "smooth_boxes", "smooth_vehicle_boxes", "orient_walkers", "smooth_robust"])]
     pub as_published: bool,
     /// Offline gap closing: join a track that ends to one that starts up to N frames later
     /// (or up to 4 frames earlier) where its motion leads, under the first one's id, with
@@ -274,6 +274,12 @@ pub struct LifecycleArgs {
     /// pay for the difference. 0 leaves colour out.
     #[arg(long, value_name = "D", default_value_t = 0.0, requires = "link_gaps")]
     pub link_colour: f64,
+    /// Offline extension: carry each confirmed track up to N frames past its first and
+    /// last points along the detections no track took, while they stay on the line of
+    /// its motion (0: off). Holds the whole run's points and detections until the end
+    /// (docs/TRACKING.md "Extension").
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub extend_frames: u32,
     /// Smooth each track's boxes offline: each box becomes a straight-line fit, in time,
     /// of its track's boxes over the N frames on each side, centre and size (0: off).
     /// Holds the longest window back [default: 5].
@@ -354,6 +360,20 @@ impl LifecycleArgs {
                 ("orient_walkers", "--orient-walkers", true),
                 ("huber_k", "--smooth-robust", true),
             ],
+            None,
+        )?;
+        Ok(config)
+    }
+
+    /// The extension stage's configuration (off unless `--extend-frames`).
+    pub fn extend(&self) -> Result<roadtrack::track::extend::ExtendConfig> {
+        let config = roadtrack::track::extend::ExtendConfig {
+            max_frames: self.extend_frames,
+            ..Default::default()
+        };
+        crate::flags::check_overrides(
+            config.validate(),
+            &[("max_frames", "--extend-frames", true)],
             None,
         )?;
         Ok(config)

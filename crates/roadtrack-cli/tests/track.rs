@@ -912,3 +912,46 @@ fn the_aerial_phd_file_tracks_dots_the_pedestrians_file_mixes_up() {
         "1 and 2 threads differ"
     );
 }
+
+/// `--extend-frames`: the PHD on dots writes a walker only once its label has settled; the
+/// extension carries each track back (and on) along the dots no track holds. Every point
+/// the PHD wrote stays as it was, points are added, HOTA rises; the same output at one and
+/// two threads; refused with `--as-published`.
+#[test]
+fn extend_frames_carries_tracks_to_their_dots_ends() {
+    let c = DotsCrossing::new(0.25);
+    let run = |extend: &str, threads: &str| {
+        let flags = [
+            "--confirm-hits",
+            "16",
+            "--smooth-boxes",
+            "0",
+            "--extend-frames",
+            extend,
+        ];
+        let name = format!("ext-{extend}-{threads}.txt");
+        c.run("phd", "phd-aerial.toml", &flags, threads, &name)
+    };
+    let (plain, extended) = (run("0", "2"), run("30", "2"));
+    let rows = |p: &Path| -> Vec<String> {
+        let text = std::fs::read_to_string(p).expect("read");
+        text.lines().map(str::to_owned).collect()
+    };
+    let (a, b) = (rows(&plain), rows(&extended));
+    let kept: std::collections::BTreeSet<&String> = b.iter().collect();
+    assert!(a.iter().all(|r| kept.contains(r)), "a point changed");
+    assert!(b.len() > a.len(), "{} rows → {}", a.len(), b.len());
+    let ((h0, _), (h1, _)) = (hota_idf1(&c.seq, &plain), hota_idf1(&c.seq, &extended));
+    assert!(h1 > h0, "HOTA {h0} → {h1}");
+    assert_eq!(
+        std::fs::read(&extended).expect("read"),
+        std::fs::read(run("30", "1")).expect("read"),
+        "1 and 2 threads differ"
+    );
+    let o = bin()
+        .args(["track", "x", "--method", "phd", "--as-published"])
+        .args(["--extend-frames", "5"])
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -11,6 +11,7 @@ use roadtrack::frame::Frame;
 use roadtrack::io::atomic::AtomicFile;
 use roadtrack::io::source;
 use roadtrack::track::confirm::LifecycleStage;
+use roadtrack::track::extend::ExtendStage;
 use roadtrack::track::filter::{
     FilterMethod, FilterTrackConfig, FilterTracker, FrameCount, Measurements,
 };
@@ -366,6 +367,13 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     }
     if !lifecycle.is_off() {
         stages.push(Box::new(LifecycleStage::new(lifecycle)?));
+    }
+    let extend = args.lifecycle.extend()?;
+    if !extend.is_off() {
+        // Choice: after the life cycle, so that only confirmed tracks are carried on (a
+        // tentative one would carry a shadow's or a neighbour's detections), and before
+        // the smoothing, which fits the added points with the others.
+        stages.push(Box::new(ExtendStage::new(extend)?));
     }
     let smooth = args.lifecycle.smooth()?;
     if !smooth.is_off() {

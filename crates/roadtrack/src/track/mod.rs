@@ -11,6 +11,7 @@
 //! (confirmation, coasting, box smoothing, a class per track) as a point stage.
 
 pub mod confirm;
+pub mod extend;
 pub mod filter;
 pub mod lifecycle;
 pub mod link;

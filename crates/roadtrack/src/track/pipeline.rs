@@ -49,6 +49,17 @@ pub trait PointStage {
     /// the last stage that wants it has seen it (or a sink has drawn it), so a stage that
     /// holds points does not make the pipeline hold frames.
     fn see_image(&mut self, _points: &FramePoints, _image: &Frame) {}
+
+    /// Whether the stage looks at the detections the tracker is given
+    /// ([`PointStage::see_detections`]).
+    fn wants_detections(&self) -> bool {
+        false
+    }
+
+    /// Called with each frame's detections as the tracker is given them, in frame order,
+    /// before that frame's points reach the stage, when the stage
+    /// [wants detections](PointStage::wants_detections).
+    fn see_detections(&mut self, _frame: u32, _detections: &FrameDetections) {}
 }
 
 /// Where final track points go: one call per frame, in frame order, points sorted by id.
@@ -196,6 +207,9 @@ impl<'a> Pipeline<'a> {
         summary: &mut RunSummary,
         ids: &mut BTreeSet<u64>,
     ) -> Result<()> {
+        for s in self.stages.iter_mut().filter(|s| s.wants_detections()) {
+            s.see_detections(frame.index, detections);
+        }
         let out = self.tracker.step(&frame, detections)?;
         waiting.frames.push_back((
             frame.index,
