@@ -21,8 +21,8 @@ import mog2_norfair  # noqa: E402
 import norfair_peer  # noqa: E402
 from video_tracking_table import evaluate, print_means, run, sequence  # noqa: E402
 
-DOTS = ["--confirm-hits", "32", "--orient-walkers", "--smooth-robust", "--smooth-boxes", "12",
-        "--smooth-vehicle-boxes", "5"]
+DOTS = ["--confirm-hits", "32", "--extend-frames", "30", "--orient-walkers", "--smooth-robust",
+        "--smooth-boxes", "12", "--smooth-vehicle-boxes", "5"]
 JUNCTION = ["--config", "configs/mrf-intersection.toml", "--coast-frames", "40"]
 # The refinement: vehicles' boxes from above (walkers are dots there, centred already),
 # everyone's from the side.
