@@ -137,25 +137,15 @@ fn same_kind(track: &ObjectClass, det: Option<&ObjectClass>) -> bool {
 }
 
 /// Least-squares line through `(frame, centre)`, evaluated at `frame` (the mean for one
-/// point or one distinct frame).
+/// point or one distinct frame): the box smoother's line with every weight 1.
 fn on_line(points: &[(f64, Point)], frame: f64) -> Point {
-    let n = points.len() as f64;
-    let mf = points.iter().map(|p| p.0).sum::<f64>() / n;
-    let mx = points.iter().map(|p| p.1.x).sum::<f64>() / n;
-    let my = points.iter().map(|p| p.1.y).sum::<f64>() / n;
-    let sff = points.iter().map(|p| (p.0 - mf).powi(2)).sum::<f64>();
-    if sff <= 0.0 {
-        return Point::new(mx, my);
-    }
-    let sfx = points
-        .iter()
-        .map(|p| (p.0 - mf) * (p.1.x - mx))
-        .sum::<f64>();
-    let sfy = points
-        .iter()
-        .map(|p| (p.0 - mf) * (p.1.y - my))
-        .sum::<f64>();
-    Point::new(mx + sfx / sff * (frame - mf), my + sfy / sff * (frame - mf))
+    let t: Vec<f64> = points.iter().map(|p| p.0 - frame).collect();
+    let w = vec![1.0; points.len()];
+    let at = |v: Vec<f64>| super::smooth::weighted_line(&t, &v, &w).0;
+    Point::new(
+        at(points.iter().map(|p| p.1.x).collect()),
+        at(points.iter().map(|p| p.1.y).collect()),
+    )
 }
 
 /// Whether `c` lies within half of `b` (at least 0.5 px each way) of `b`'s centre.
@@ -200,14 +190,14 @@ fn extend(
         own.dedup();
         for backward in [true, false] {
             // The track's points nearest the end to carry on, that end first.
-            let order: Box<dyn Iterator<Item = &usize>> = if backward {
-                Box::new(own.iter())
-            } else {
-                Box::new(own.iter().rev())
-            };
-            let mine: Vec<(usize, TrackPoint)> = order
+            let mut near = own.clone();
+            if !backward {
+                near.reverse();
+            }
+            let mine: Vec<(usize, TrackPoint)> = near
+                .into_iter()
                 .take(cfg.fit_frames as usize)
-                .filter_map(|&i| {
+                .filter_map(|i| {
                     let p = frames[i].points.iter().find(|p| p.id == id)?;
                     Some((i, p.clone()))
                 })
@@ -221,7 +211,7 @@ fn extend(
                 .collect();
             let side = end.bbox.width.max(end.bbox.height);
             let gate = cfg.min_gate_px.max(cfg.gate * side);
-            let mut found: Vec<(usize, Point)> = Vec::new();
+            let mut found: Vec<TrackPoint> = Vec::new();
             let mut missed = 0;
             for step in 1..=cfg.max_frames as usize {
                 let Some(i) = (if backward {
@@ -264,34 +254,31 @@ fn extend(
                     continue;
                 };
                 missed = 0;
-                found.push((i, c));
                 fit.insert(0, (f64::from(frame), c));
                 fit.truncate(cfg.fit_frames as usize);
                 // Written now, so that the tracks after this one see the detection held.
-                frames[i]
-                    .points
-                    .push(point_at(&end, frame, frames[i].time_s, c));
+                let p = point_at(&end, frame, frames[i].time_s, c);
+                frames[i].points.push(p.clone());
+                found.push(p);
                 own.push(i);
                 added += 1;
             }
             // Missed frames between the end and the farthest point found: on the line
-            // between the neighbours.
-            let mut prev = (end_i, end.bbox.centre());
-            for &(i, c) in &found {
-                let gap = prev.0.abs_diff(i);
-                for k in 1..gap {
-                    let j = if backward { prev.0 - k } else { prev.0 + k };
-                    let t = k as f64 / gap as f64;
-                    let m = Point::new(
-                        prev.1.x + t * (c.x - prev.1.x),
-                        prev.1.y + t * (c.y - prev.1.y),
-                    );
-                    let (frame, time_s) = (frames[j].frame, frames[j].time_s);
-                    frames[j].points.push(point_at(&end, frame, time_s, m));
+            // between the neighbours, as coasting fills them.
+            let mut prev = &end;
+            for p in &found {
+                let (a, b) = if backward { (p, prev) } else { (prev, p) };
+                for frame in a.frame + 1..b.frame {
+                    let j = (frame - first) as usize;
+                    let size = (a.bbox.width, a.bbox.height);
+                    let time_s = frames[j].time_s;
+                    frames[j]
+                        .points
+                        .push(super::interpolated_point(a, size, b, frame, time_s, id));
                     own.push(j);
                     added += 1;
                 }
-                prev = (i, c);
+                prev = p;
             }
             own.sort_unstable();
         }

@@ -223,7 +223,7 @@ impl FitBuffers {
 }
 
 /// Weighted least squares of `y = a + b t`: `(a, b)` (`b` = 0 when all `t` are equal).
-fn weighted_line(t: &[f64], y: &[f64], w: &[f64]) -> (f64, f64) {
+pub(super) fn weighted_line(t: &[f64], y: &[f64], w: &[f64]) -> (f64, f64) {
     let sw: f64 = w.iter().sum();
     let mean = |v: &[f64]| v.iter().zip(w).map(|(v, w)| v * w).sum::<f64>() / sw;
     let (mean_t, mean_y) = (mean(t), mean(y));
