@@ -369,15 +369,8 @@ mod tests {
     use crate::track::frames_of as frames;
 
     fn point(frame: u32, id: u64, x: f64, class: ObjectClass) -> TrackPoint {
-        TrackPoint {
-            frame,
-            time_s: f64::from(frame - 1) / 10.0,
-            id,
-            class,
-            bbox: BBox::from_centre(Point::new(x, 50.0), 1.0, 1.0),
-            score: 0.9,
-            ground: None,
-        }
+        let bbox = BBox::from_centre(Point::new(x, 50.0), 1.0, 1.0);
+        crate::track::point_at(frame, id, class, bbox)
     }
 
     /// A walker at `x0 + v·f` tracked in `frames` under `id`.
