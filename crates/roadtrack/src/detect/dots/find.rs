@@ -191,6 +191,62 @@ fn pixel_centre(blob: &[usize], w: usize) -> Point {
     Point::new(sx / n, sy / n)
 }
 
+/// The contrast of `blob` in an image of 3 values per pixel (`value(i)` the `i`-th value,
+/// row-major): the largest `|ΔR| + |ΔG| + |ΔB|` of a blob pixel from the per-channel
+/// median of the ring of pixels 2 or 3 px (Chebyshev) from the blob's centre pixel, inside
+/// the image; 0 with no ring.
+fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize]) -> f32 {
+    let c = pixel_centre(blob, w);
+    let (cx, cy) = (c.x.floor() as i64, c.y.floor() as i64);
+    let mut ring: [Vec<f32>; 3] = Default::default();
+    for dy in -RING_PX..=RING_PX {
+        for dx in -RING_PX..=RING_PX {
+            let (x, y) = (cx + dx, cy + dy);
+            if dx.abs().max(dy.abs()) < RING_PX - 1 || x < 0 || y < 0 {
+                continue;
+            }
+            let (x, y) = (x as usize, y as usize);
+            if x >= w || y >= h {
+                continue;
+            }
+            for (k, r) in ring.iter_mut().enumerate() {
+                r.push(value(3 * (y * w + x) + k));
+            }
+        }
+    }
+    if ring[0].is_empty() {
+        return 0.0;
+    }
+    let med = ring.map(|mut r| {
+        r.sort_unstable_by(f32::total_cmp);
+        r[r.len() / 2]
+    });
+    blob.iter()
+        .map(|&i| {
+            (0..3)
+                .map(|k| (value(3 * i + k) - med[k]).abs())
+                .sum::<f32>()
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Outer radius (Chebyshev, px) of [`contrast`]'s ring; the ring is this and one less.
+const RING_PX: i64 = 3;
+
+/// Whether `blob` is a ghost by [`DotConfig::ghost_contrast_ratio`]: the frame's contrast
+/// there under that share of the background's ([`contrast`]). A walker shows contrast in
+/// the frame whatever the background holds; a ghost is where the background still holds
+/// someone who has left, over an even frame.
+// Choice: the background's own contrast as the yardstick, not the blob's difference from
+// the background. Against the difference (frame contrast ≥ 0.5 × difference) a walker in a
+// group, whose ring is half walkers, failed the test: the aerial crossing, seeds 4–6, HOTA
+// +0.004, against +0.012 this way (docs/EXPERIMENTS.md "Ghost dots").
+fn is_ghost(px: &[u8], mean: &[f32], w: usize, h: usize, blob: &[usize], ratio: f64) -> bool {
+    ratio > 0.0
+        && f64::from(contrast(|i| f32::from(px[i]), w, h, blob))
+            < ratio * f64::from(contrast(|i| mean[i], w, h, blob))
+}
+
 /// A lone dot beside its shadow gives the offset of shadows when the dot has at most this
 /// many pixels and the shadow at most [`LONE_SHADOW_PX`].
 const LONE_DOT_PX: usize = 3;
@@ -253,7 +309,9 @@ pub(crate) fn find_dots(
             for &i in blob {
                 blob_of[i] = id;
             }
-            if blob.len() > cfg.max_area_px as usize {
+            if blob.len() > cfg.max_area_px as usize
+                || is_ghost(px, mean, w, h, blob, cfg.ghost_contrast_ratio)
+            {
                 return;
             }
             let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
@@ -308,7 +366,10 @@ pub(crate) fn find_dots(
                 Some(_) => {}
                 None => {
                     let n = blob.len();
-                    if n >= cfg.dark_min_area_px as usize && n <= cfg.dark_max_area_px as usize {
+                    if n >= cfg.dark_min_area_px as usize
+                        && n <= cfg.dark_max_area_px as usize
+                        && !is_ghost(px, mean, w, h, blob, cfg.ghost_contrast_ratio)
+                    {
                         let weight = blob.iter().map(|&i| f64::from(shade[i])).sum();
                         dark.push((pixel_centre(blob, w), weight, n as u32));
                     }
@@ -494,5 +555,74 @@ pub(super) mod tests {
             .len(),
             2
         );
+    }
+
+    /// A walker the background learnt and who has left: the frame is even road where the
+    /// model holds the walker (a bright pixel, and a dark 3-pixel blob the dark-dot rule
+    /// would take), so both are ghosts; a walker on the road, alone or beside two others,
+    /// and a walker standing where the model holds another one, are dots.
+    #[test]
+    fn ghosts_of_walkers_who_left_are_not_dots() {
+        let road = RgbImage::from_pixel(60, 30, Rgb(ROAD));
+        let mut bg = road.clone();
+        let mut img = road.clone();
+        // Ghosts: in the background only.
+        bg.put_pixel(5, 5, Rgb([200, 40, 40]));
+        let bright = Rgb(ROAD.map(|v| (f32::from(v) * 1.6) as u8));
+        for (x, y) in [(15, 5), (15, 6), (16, 6)] {
+            bg.put_pixel(x, y, bright);
+        }
+        // Walkers: in the frame (one alone, a group of three in a row, one standing on a
+        // ghost of another colour).
+        img.put_pixel(30, 5, Rgb([200, 40, 40]));
+        for x in [40, 42, 44] {
+            img.put_pixel(x, 20, Rgb([40, 40, 200]));
+        }
+        bg.put_pixel(50, 10, Rgb([200, 190, 180]));
+        img.put_pixel(50, 10, Rgb([30, 160, 30]));
+        let find = |ratio: f64| {
+            let cfg = DotConfig {
+                ghost_contrast_ratio: ratio,
+                ..DotConfig::default()
+            };
+            find_dots(
+                &img,
+                &mean_of(&bg),
+                None,
+                &cfg,
+                &mut ShadowOffset::default(),
+            )
+            .into_iter()
+            .map(|d| (d.centre.x.floor() as i64, d.centre.y.floor() as i64))
+            .collect::<Vec<_>>()
+        };
+        let walkers = vec![(30, 5), (50, 10), (40, 20), (42, 20), (44, 20)];
+        assert_eq!(find(DotConfig::default().ghost_contrast_ratio), walkers);
+        // Off: the ghosts are dots too.
+        let all = find(0.0);
+        assert!(all.contains(&(5, 5)), "{all:?}");
+        assert!(
+            all.iter().any(|&(x, y)| (14..=17).contains(&x) && y <= 6),
+            "{all:?}"
+        );
+        assert_eq!(all.len(), walkers.len() + 2, "{all:?}");
+    }
+
+    /// The contrast of a blob against the median of its ring, by hand.
+    #[test]
+    fn contrast_is_the_largest_difference_from_the_rings_median() {
+        let mut img = RgbImage::from_pixel(9, 9, Rgb([100, 100, 100]));
+        img.put_pixel(4, 4, Rgb([130, 90, 100]));
+        // Ring pixels off the median: fewer than half of the ring's 40.
+        for x in 1..8 {
+            img.put_pixel(x, 1, Rgb([0, 0, 0]));
+        }
+        let w = 9;
+        let value = |i: usize| f32::from(img.as_raw()[i]);
+        assert_eq!(contrast(value, w, 9, &[4 * w + 4]), 40.0);
+        // A blob in a corner has a part ring; an image with no ring gives 0.
+        assert_eq!(contrast(value, w, 9, &[0]), 0.0);
+        let one = RgbImage::from_pixel(1, 1, Rgb([5, 5, 5]));
+        assert_eq!(contrast(|i| f32::from(one.as_raw()[i]), 1, 1, &[0]), 0.0);
     }
 }
