@@ -198,7 +198,10 @@ fn pixel_centre(blob: &[usize], w: usize) -> Point {
 fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize]) -> f32 {
     let c = pixel_centre(blob, w);
     let (cx, cy) = (c.x.floor() as i64, c.y.floor() as i64);
-    let mut ring: [Vec<f32>; 3] = Default::default();
+    // Per channel, the ring's values (at most RING_LEN), on the stack: this runs for every
+    // blob small enough to be a dot.
+    let mut ring = [[0f32; RING_LEN]; 3];
+    let mut n = 0;
     for dy in -RING_PX..=RING_PX {
         for dx in -RING_PX..=RING_PX {
             let (x, y) = (cx + dx, cy + dy);
@@ -210,17 +213,15 @@ fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize]) ->
                 continue;
             }
             for (k, r) in ring.iter_mut().enumerate() {
-                r.push(value(3 * (y * w + x) + k));
+                r[n] = value(3 * (y * w + x) + k);
             }
+            n += 1;
         }
     }
-    if ring[0].is_empty() {
+    if n == 0 {
         return 0.0;
     }
-    let med = ring.map(|mut r| {
-        r.sort_unstable_by(f32::total_cmp);
-        r[r.len() / 2]
-    });
+    let med = ring.map(|mut r| *r[..n].select_nth_unstable_by(n / 2, f32::total_cmp).1);
     blob.iter()
         .map(|&i| {
             (0..3)
@@ -232,6 +233,8 @@ fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize]) ->
 
 /// Outer radius (Chebyshev, px) of [`contrast`]'s ring; the ring is this and one less.
 const RING_PX: i64 = 3;
+/// Pixels in [`contrast`]'s ring: (2·3 + 1)² − (2·1 + 1)².
+const RING_LEN: usize = 40;
 
 /// Whether `blob` is a ghost by [`DotConfig::ghost_contrast_ratio`]: the frame's contrast
 /// there under that share of the background's ([`contrast`]). A walker shows contrast in
