@@ -23,6 +23,27 @@ fn track_ok(seq: &Path, args: &[&OsStr], threads: &str, out: PathBuf) -> PathBuf
     out
 }
 
+/// Fails the test unless the files `a` and `b` (the same run at two and at one thread)
+/// hold the same bytes.
+fn assert_same_at_one_thread(a: &Path, b: &Path) {
+    assert_eq!(
+        std::fs::read(a).expect("read"),
+        std::fs::read(b).expect("read"),
+        "1 and 2 threads differ"
+    );
+}
+
+/// Fails the test unless `track --method phd --as-published FLAGS…` is a usage error
+/// (exit 2): `FLAGS` are roadtrack's additions, not the paper's method.
+fn assert_refused_as_published(flags: &[&str]) {
+    let o = bin()
+        .args(["track", "x", "--method", "phd", "--as-published"])
+        .args(flags)
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
 fn simulate(dir: &Path, scene: SceneKind, view: ViewKind, frames: u32) {
     let cfg = SimConfig {
         scene,
@@ -516,12 +537,7 @@ fn filters_weigh_particles_by_the_detections_and_refuse_bad_settings() {
             "{method}: detections {detections:.3}, colour {colour:.3}"
         );
     }
-    let o = bin()
-        .args(["track", "x", "--method", "phd", "--as-published"])
-        .args(["--likelihood", "detections"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_refused_as_published(&["--likelihood", "detections"]);
     let e = config_error(
         dir.path(),
         "pf",
@@ -669,17 +685,8 @@ fn link_gaps_joins_broken_tracks_deterministically() {
         i1 > i0 && h1 > h0 - 0.005,
         "HOTA {h0} → {h1}, IDF1 {i0} → {i1}"
     );
-    assert_eq!(
-        std::fs::read(&linked).expect("read"),
-        std::fs::read(run("10", "1")).expect("read"),
-        "1 and 2 threads differ"
-    );
-    let o = bin()
-        .args(["track", "x", "--method", "phd", "--as-published"])
-        .args(["--link-gaps", "5"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_same_at_one_thread(&linked, &run("10", "1"));
+    assert_refused_as_published(&["--link-gaps", "5"]);
 }
 
 /// Box smoothing (`--smooth-boxes`, on by default): on the aerial road's public
@@ -704,11 +711,7 @@ fn smooth_boxes_fits_the_truth_better_and_is_deterministic() {
     let on = run(&[], "2", "on.txt");
     let ((h0, _), (h1, _)) = (hota_idf1(&seq, &off), hota_idf1(&seq, &on));
     assert!(h1 > h0 + 0.01, "HOTA {h0} → {h1}");
-    assert_eq!(
-        std::fs::read(&on).expect("read"),
-        std::fs::read(run(&[], "1", "on1.txt")).expect("read"),
-        "1 and 2 threads differ"
-    );
+    assert_same_at_one_thread(&on, &run(&[], "1", "on1.txt"));
     // The same detections classed as cars: `--smooth-vehicle-boxes 9` smooths them over 9
     // frames each side, as `--smooth-boxes 9` does and the default (5) does not. Tracks
     // without a class take the general window whatever the vehicles' is.
@@ -906,11 +909,7 @@ fn the_aerial_phd_file_tracks_dots_the_pedestrians_file_mixes_up() {
         h1 > h0 + 0.15 && i1 > i0 + 0.25,
         "HOTA {h0} -> {h1}, IDF1 {i0} -> {i1}"
     );
-    assert_eq!(
-        std::fs::read(&aerial).expect("read"),
-        std::fs::read(run("phd-aerial.toml", "1")).expect("read"),
-        "1 and 2 threads differ"
-    );
+    assert_same_at_one_thread(&aerial, &run("phd-aerial.toml", "1"));
 }
 
 /// `--extend-frames`: the PHD on dots writes a walker only once its label has settled; the
@@ -943,15 +942,6 @@ fn extend_frames_carries_tracks_to_their_dots_ends() {
     assert!(b.len() > a.len(), "{} rows → {}", a.len(), b.len());
     let ((h0, _), (h1, _)) = (hota_idf1(&c.seq, &plain), hota_idf1(&c.seq, &extended));
     assert!(h1 > h0, "HOTA {h0} → {h1}");
-    assert_eq!(
-        std::fs::read(&extended).expect("read"),
-        std::fs::read(run("30", "1")).expect("read"),
-        "1 and 2 threads differ"
-    );
-    let o = bin()
-        .args(["track", "x", "--method", "phd", "--as-published"])
-        .args(["--extend-frames", "5"])
-        .output()
-        .expect("run");
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_same_at_one_thread(&extended, &run("30", "1"));
+    assert_refused_as_published(&["--extend-frames", "5"]);
 }
