@@ -17,6 +17,11 @@ which samples meet in a batch): the CPU recipe is the deterministic one.
     python3 scripts/train_gpu.py --dumper target/release/examples/dump_samples \
         --model ft:models/detector.onnx:6e-4 --model wide:16,32,64,96,48:3e-3 \
         --seconds 420 --out OUTDIR
+
+The shipped model's GPU stage (scripts/setup.sh runs it after the CPU stages when torch sees a
+CUDA GPU): two runs from the last CPU stage, 450 s at peak rate 1.5e-3 (seed 0, simulator
+seeds from 20000), then 255 s at 6e-4 (seed 1, from 60000); on one H200 with 14 workers
+they made 19 163 and 22 303 steps of 128 crops, which --steps reproduces as a schedule.
 """
 
 import argparse
@@ -223,12 +228,35 @@ def to_batch(parts, dev):
     return x, neg.float(), pos.float(), reg, mask.float(), npos
 
 
+def check_loss(a):
+    """The torch losses of --model's weights on a dump, to compare with burn's."""
+    _name, init, _lr = a.model[0].split(":")
+    shape, w = read_weights(init)
+    m = CenterNet(shape)
+    m.load(w)
+    m.eval()
+    items = []
+    with open(a.check_loss, "rb") as f:
+        while (rec := parse_record(f)) is not None:
+            items.append(rec)
+    h = b = n = 0.0
+    with torch.no_grad():
+        for i in range(0, len(items), 64):
+            parts = [torch.from_numpy(v) for v in stack(items[i:i + 64])]
+            hh, bb, nn_ = losses(m, to_batch(parts, None))
+            h, b, n = h + hh.item(), b + bb.item(), n + nn_.item()
+    print(f"torch losses per object centre: heat {h / n:.6f} box {b / n:.6f} ({len(items)} samples)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--dumper", required=True, help="the dump_samples example binary")
     ap.add_argument("--model", action="append", required=True,
                     help="NAME:INIT:LR, INIT a .onnx/.json to start from or widths c1,c2,c3,c4,head")
-    ap.add_argument("--seconds", type=float, default=420.0, help="training time (the schedule is by time)")
+    ap.add_argument("--seconds", type=float, default=420.0,
+                    help="training time; the schedule is by time unless --steps is given")
+    ap.add_argument("--steps", type=int, default=0,
+                    help="optimiser steps: the schedule is by step count (--seconds still limits)")
     ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2) - 2))
     ap.add_argument("--per-episode", type=int, default=64, help="crops per rendered episode")
@@ -241,8 +269,15 @@ def main():
     ap.add_argument("--val-workers", type=int, default=2)
     ap.add_argument("--checkpoint-every", type=float, default=60.0, help="seconds")
     ap.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", help="folder for the weights (NAME.json), history.json and the log")
+    ap.add_argument("--check-loss", metavar="DUMP",
+                    help="print the first --model's losses on the records of DUMP (written by "
+                         "dump_samples with LOSS_OF=, which prints burn's) and exit")
     a = ap.parse_args()
+    if a.check_loss:
+        return check_loss(a)
+    if not a.out:
+        ap.error("--out is required")
     os.makedirs(a.out, exist_ok=True)
     dev = torch.device(a.device)
     torch.backends.cudnn.benchmark = True
@@ -340,7 +375,7 @@ def main():
 
     while True:
         el = time.time() - t_start
-        if el >= a.seconds:
+        if el >= a.seconds or (a.steps and steps >= a.steps):
             break
         # Take what the workers sent.
         got = 0
@@ -366,7 +401,7 @@ def main():
             if got == 0:
                 time.sleep(0.01)
             continue
-        frac = el / a.seconds
+        frac = steps / a.steps if a.steps else el / a.seconds
         warm = 0.02
         idx = torch.randint(0, filled, (a.batch,), device=dev)
         batch = to_batch([r_[idx] for r_ in ring], dev)

@@ -11,11 +11,12 @@
 //! `SAMPLES_PER_EPISODE` crops are drawn from the pool (`make_sample`). Runs until
 //! `EPISODES` episodes (default: until stdout closes).
 //!
-//! Record, little-endian: `b"RTS1"`, `u32` crop side S, `u32` P (positives), `u32` R (box
-//! cells), `u32` n_pos; the input as `3 × S × S` `u8` (the crop's 0–255 values, undoing the
-//! preprocessing); the negatives' weights `4 × G × G` `f32` (G = S / 4); P `u32` indices
-//! into `4 × G × G` where `pos` is 1; R entries of `u32` cell index into `G × G` and 4 `f32`
-//! (`ln(w/4)`, `ln(h/4)`, `dx`, `dy`).
+//! Records as `roadtrack_learn::record` writes them.
+//!
+//! `LOSS_OF=W.json` (or a learned detector's weights from `--weights-out`): also prints to
+//! stderr burn's losses of those weights on the samples written, per object centre, as
+//! `roadtrack_learn::train` computes them, to check an outside trainer's loss against
+//! (`python3 scripts/train_gpu.py --check-loss DUMP --model x:W.json:0`).
 
 use std::io::Write as _;
 
@@ -44,9 +45,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let prep = training_preprocessing();
     let mut crop_rng = Pcg64Mcg::seed_from_u64(seed ^ first.wrapping_mul(0xD1B5_4A32_D192_ED03));
     let mut pool: Vec<TrainFrame> = Vec::new();
+    let loss_of = match std::env::var("LOSS_OF") {
+        Ok(p) => Some(roadtrack_learn::arch::CenterNetWeights::from_json(
+            &std::fs::read_to_string(&p)?,
+        )?),
+        Err(_) => None,
+    };
+    let mut kept = Vec::new();
     let mut out = std::io::BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
     let s = data.crop;
-    let g = s / roadtrack_learn::arch::STRIDE;
     for e in 0..episodes {
         let sim_seed = first + e * step;
         // The trainer's per-episode RNG (`train::produce`).
@@ -59,48 +66,47 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..per_episode {
             let f = &pool[crop_rng.random_range(0..pool.len())];
             let sm = make_sample(f, &mut crop_rng, &data, &prep);
-            let pos: Vec<u32> = (0..sm.pos.len())
-                .filter(|&i| sm.pos[i] != 0.0)
-                .map(|i| i as u32)
-                .collect();
-            let cells: Vec<u32> = (0..g * g)
-                .filter(|&i| sm.reg_mask[i] != 0.0)
-                .map(|i| i as u32)
-                .collect();
-            let mut rec = Vec::with_capacity(20 + 3 * s * s + 16 * g * g + 4 * pos.len());
-            rec.extend_from_slice(b"RTS1");
-            for v in [
-                s as u32,
-                pos.len() as u32,
-                cells.len() as u32,
-                sm.n_pos as u32,
-            ] {
-                rec.extend_from_slice(&v.to_le_bytes());
-            }
-            for (i, &x) in sm.input.iter().enumerate() {
-                let c = i / (s * s);
-                let px = (x * prep.std[c] + prep.mean[c]) / prep.input_scale;
-                rec.push(px.round().clamp(0.0, 255.0) as u8);
-            }
-            for &w in &sm.neg_weight {
-                rec.extend_from_slice(&w.to_le_bytes());
-            }
-            for &p in &pos {
-                rec.extend_from_slice(&p.to_le_bytes());
-            }
-            for &c in &cells {
-                rec.extend_from_slice(&c.to_le_bytes());
-                for k in 0..4 {
-                    rec.extend_from_slice(&sm.reg[k * g * g + c as usize].to_le_bytes());
-                }
-            }
+            let rec = roadtrack_learn::record::encode(&sm, s, &prep);
             if out.write_all(&rec).is_err() {
                 return Ok(()); // the reader hung up
+            }
+            if loss_of.is_some() {
+                kept.push(sm);
             }
         }
         if out.flush().is_err() {
             return Ok(());
         }
+    }
+    if let Some(w) = &loss_of {
+        use roadtrack_learn::burn::prelude::Device;
+        let device = Device::flex();
+        let net = roadtrack_learn::net::CenterNet::from_weights(w, &device);
+        let (mut heat, mut boxes, mut n) = (0.0f64, 0.0f64, 0usize);
+        for chunk in kept.chunks(64) {
+            let batch = roadtrack_learn::train::Batch::stack(chunk, s);
+            let outputs = net.forward(batch.input_tensor(&device));
+            let (h, b) = roadtrack_learn::train::losses(&outputs, &batch, &device);
+            let scalar = |t: roadtrack_learn::burn::prelude::Tensor<1>| -> f64 {
+                t.into_data()
+                    .try_to_vec::<f32>()
+                    .ok()
+                    .and_then(|v| v.first().copied())
+                    .map_or(f64::NAN, f64::from)
+            };
+            // `losses` divides by the batch's centres: weigh each batch back by them.
+            let k = batch.n_pos.max(1);
+            heat += scalar(h) * k as f64;
+            boxes += scalar(b) * k as f64;
+            n += batch.n_pos;
+        }
+        let n = n.max(1) as f64;
+        eprintln!(
+            "burn losses per object centre: heat {:.6} box {:.6} ({} samples)",
+            heat / n,
+            boxes / n,
+            kept.len()
+        );
     }
     Ok(())
 }

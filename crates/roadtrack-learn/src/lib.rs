@@ -12,6 +12,7 @@ pub use roadtrack::detect::centernet as arch;
 pub mod data;
 pub mod net;
 pub mod parity;
+pub mod record;
 pub mod train;
 
 #[cfg(test)]

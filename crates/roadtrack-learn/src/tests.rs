@@ -546,3 +546,72 @@ fn the_vehicle_shares_set_the_episodes_mix_and_nothing_else() {
         }
     }
 }
+
+#[test]
+fn sample_records_give_back_the_sample() -> Result<()> {
+    use crate::data::{Object, TrainFrame, make_sample};
+    use crate::record::{decode, encode};
+    use rand::SeedableRng;
+    // A textured frame with vehicles and walkers of every class, two of them barely visible
+    // (ignored around them: zero negative weights).
+    let image = image::RgbImage::from_fn(320, 240, |x, y| {
+        image::Rgb([
+            (x * 7 % 256) as u8,
+            (y * 5 % 256) as u8,
+            ((x + y) % 256) as u8,
+        ])
+    });
+    let objects = (0..12)
+        .map(|k| Object {
+            bbox: roadtrack::geometry::BBox::new(
+                20.0 + 23.0 * k as f64,
+                30.0 + 13.0 * k as f64,
+                8.0 + 3.0 * k as f64,
+                6.0 + 2.0 * k as f64,
+            ),
+            channel: k % 4,
+            visibility: if k % 5 == 0 { 0.1 } else { 1.0 },
+        })
+        .collect();
+    let frame = TrainFrame { image, objects };
+    let data = DataConfig::default();
+    let prep = crate::train::training_preprocessing();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+    let (mut with_pos, mut with_ignored) = (0, 0);
+    for _ in 0..40 {
+        let s = make_sample(&frame, &mut rng, &data, &prep);
+        let mut bytes = encode(&s, data.crop, &prep);
+        let len = bytes.len();
+        bytes.extend_from_slice(b"RTS1 next record");
+        let (d, used) = decode(&bytes, &prep)?;
+        assert_eq!(used, len);
+        assert_eq!(
+            (&d.pos, &d.neg_weight, d.n_pos),
+            (&s.pos, &s.neg_weight, s.n_pos)
+        );
+        assert_eq!((&d.reg, &d.reg_mask), (&s.reg, &s.reg_mask));
+        // The input is stored as 0–255 values: within half a grey level.
+        let step = 0.5 * prep.input_scale / prep.std[0] + 1e-6;
+        assert!(
+            d.input
+                .iter()
+                .zip(&s.input)
+                .all(|(a, b)| (a - b).abs() <= step)
+        );
+        with_pos += usize::from(s.n_pos > 0);
+        let ignored = s
+            .neg_weight
+            .iter()
+            .zip(&s.pos)
+            .any(|(&w, &p)| w == 0.0 && p == 0.0);
+        with_ignored += usize::from(ignored);
+        // Cut short or not a record: refused, never a panic.
+        assert!(decode(&bytes[..len - 1], &prep).is_err());
+        assert!(decode(&bytes[len..], &prep).is_err());
+    }
+    assert!(
+        with_pos > 10 && with_ignored > 0,
+        "{with_pos} {with_ignored}"
+    );
+    Ok(())
+}
