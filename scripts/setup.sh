@@ -9,17 +9,25 @@
 #     Nothing comes from a model hub.
 #     It also trains the learned detector models/detector.onnx (docs/DETECTION.md, "Learned
 #     detector") when the file is missing, or always with ROADTRACK_RETRAIN=1: a release
-#     build, then `roadtrack train --detector` with the shipped model's recipe and its box
-#     gain (deterministic: the same bytes on every run).
+#     build, `roadtrack train --detector` with the shipped model's CPU stages (deterministic:
+#     the same bytes on every run), then, where python3 has torch and it sees a CUDA GPU, the
+#     GPU stage (scripts/train_gpu.py; not byte-deterministic), and the box gain measured on
+#     the last stage's network. Without a GPU the model stops at the CPU stages, which find
+#     fewer objects than the shipped model (docs/DETECTION.md "A GPU stage").
 set -euo pipefail
 
 # The shipped detector's recipe (docs/DETECTION.md); keep in step with the committed model.
 # Stages, each STEPS:SEED:SIM_SEED_BASE:LEARNING_RATE, every stage after the first starting
 # from the weights of the one before.
 DETECTOR_STAGES="${DETECTOR_STAGES:-8000:0:1000:2e-3 6000:1:5000:6e-4 6000:2:8000:4e-4 4000:3:11000:3e-4}"
+# Then the GPU stage (docs/DETECTION.md "A GPU stage"), runs of scripts/train_gpu.py each
+# STEPS:SEED:SIM_SEED_BASE:LEARNING_RATE, from the stage before.
+DETECTOR_GPU_STAGES="${DETECTOR_GPU_STAGES:-19163:0:20000:1.5e-3 22303:1:60000:6e-4}"
 # Then the box gain (docs/DETECTION.md "Box gain"): the terms `python3 scripts/box_gain.py`
-# measured on the last stage's network, written into the model's metadata.
-DETECTOR_BOX_GAIN="${DETECTOR_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.026,-0.17,-0.003,-0.128}"
+# measured on the last stage's network, written into the model's metadata: after the GPU
+# stage, or after the CPU stages where there is no GPU.
+DETECTOR_BOX_GAIN="${DETECTOR_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.02,-0.113,0.002,-0.066}"
+DETECTOR_CPU_BOX_GAIN="${DETECTOR_CPU_BOX_GAIN:-0,0,0,0,0,0,0,0,0,0,0,0,0.026,-0.17,-0.003,-0.128}"
 
 if [ "${1:-}" = "--models" ]; then
   models="${ROADTRACK_MODELS:-$HOME/.cache/roadtrack/models}"
@@ -58,8 +66,29 @@ PY
         -o "$work/stage$n.onnx")
       init=(--init "$work/stage$n.json")
     done
+    last="$work/stage$n.onnx"
+    gain="$DETECTOR_CPU_BOX_GAIN"
+    if python3 -c 'import sys, torch, onnx; sys.exit(not torch.cuda.is_available())' 2>/dev/null; then
+      (cd "$root" && cargo build --release --locked -p roadtrack-learn --example dump_samples)
+      dumper="${CARGO_TARGET_DIR:-$root/target}/release/examples/dump_samples"
+      w="$work/stage$n.json"
+      for run in $DETECTOR_GPU_STAGES; do
+        IFS=: read -r steps seed sim lr <<<"$run"
+        n=$((n + 1))
+        (cd "$root" && python3 scripts/train_gpu.py --dumper "$dumper" \
+          --model "stage$n:$w:$lr" --steps "$steps" --seconds 3600 --seed "$seed" \
+          --sim-seed-base "$sim" --out "$work/gpu$n")
+        w="$work/gpu$n/stage$n.json"
+      done
+      (cd "$root" && cargo run --release --locked -p roadtrack-cli -- \
+        train --detector --from-weights "$w" -o "$work/gpu.onnx")
+      last="$work/gpu.onnx"
+      gain="$DETECTOR_BOX_GAIN"
+    else
+      echo "setup: no CUDA GPU for torch: the detector stops at the CPU stages, short of the shipped model (docs/DETECTION.md \"A GPU stage\")" >&2
+    fi
     (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
-      train --detector --init "$work/stage$n.onnx" --box-gain="$DETECTOR_BOX_GAIN" \
+      train --detector --init "$last" --box-gain="$gain" \
       -o "$root/models/detector.onnx")
     rm -rf "$work"
   fi
