@@ -68,7 +68,7 @@ PY
     done
     last="$work/stage$n.onnx"
     gain="$DETECTOR_CPU_BOX_GAIN"
-    if python3 -c 'import sys, torch, onnx; sys.exit(not torch.cuda.is_available())' 2>/dev/null; then
+    if python3 -c 'import sys, torch; sys.exit(not torch.cuda.is_available())' 2>/dev/null; then
       (cd "$root" && cargo build --release --locked -p roadtrack-learn --example dump_samples)
       dumper="${CARGO_TARGET_DIR:-$root/target}/release/examples/dump_samples"
       w="$work/stage$n.json"
@@ -80,7 +80,7 @@ PY
           --sim-seed-base "$sim" --out "$work/gpu$n")
         w="$work/gpu$n/stage$n.json"
       done
-      (cd "$root" && cargo run --release --locked -p roadtrack-cli -- \
+      (cd "$root" && cargo run --release --locked -p roadtrack-cli --features learn -- \
         train --detector --from-weights "$w" -o "$work/gpu.onnx")
       last="$work/gpu.onnx"
       gain="$DETECTOR_BOX_GAIN"
