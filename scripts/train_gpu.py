@@ -151,8 +151,8 @@ def read_weights(path):
         j = json.load(f)
     shape = j["shape"]
     w = {}
-    for (name, _kind, cin, cout, k, _st), lw in zip(layer_specs(shape), j["layers"]):
-        dims = (cout, cin, k, k) if name not in ("up1", "up2") else (cin, cout, k, k)
+    for (name, kind, cin, cout, k, _st), lw in zip(layer_specs(shape), j["layers"]):
+        dims = (cout, cin, k, k) if kind == "conv" else (cin, cout, k, k)
         w[name] = (np.asarray(lw["weight"], np.float32).reshape(dims), np.asarray(lw["bias"], np.float32))
     return shape, w
 
@@ -222,7 +222,7 @@ def losses(model, batch):
     return heat, box, npos.sum()
 
 
-def to_batch(parts, dev):
+def to_batch(parts):
     inp, neg, pos, reg, mask, npos = parts
     x = (inp.float() * (1.0 / 255.0) - 0.45) / 0.25
     return x, neg.float(), pos.float(), reg, mask.float(), npos
@@ -243,7 +243,7 @@ def check_loss(a):
     with torch.no_grad():
         for i in range(0, len(items), 64):
             parts = [torch.from_numpy(v) for v in stack(items[i:i + 64])]
-            hh, bb, nn_ = losses(m, to_batch(parts, None))
+            hh, bb, nn_ = losses(m, to_batch(parts))
             h, b, n = h + hh.item(), b + bb.item(), n + nn_.item()
     print(f"torch losses per object centre: heat {h / n:.6f} box {b / n:.6f} ({len(items)} samples)")
 
@@ -346,7 +346,7 @@ def main():
             h = b = n = 0.0
             with torch.no_grad():
                 for i in range(0, val_n, 256):
-                    part = to_batch([v[i:i + 256] for v in val_dev], dev)
+                    part = to_batch([v[i:i + 256] for v in val_dev])
                     hh, bb, nn_ = losses(m, part)
                     h, b, n = h + hh.item(), b + bb.item(), n + nn_.item()
             m.train()
@@ -363,14 +363,17 @@ def main():
     t_start = time.time()
     last_log = last_ckpt = t_start
 
+    def write_json(name, value):
+        """OUT/name, written whole (temporary file, then rename)."""
+        path = os.path.join(a.out, name)
+        with open(path + ".tmp", "w") as f:
+            json.dump(value, f)
+        os.replace(path + ".tmp", path)
+
     def checkpoint(tag):
         for mdl in models:
-            path = os.path.join(a.out, f"{mdl['name']}.json")
-            with open(path + ".tmp", "w") as f:
-                json.dump(mdl["net"].to_json(), f)
-            os.replace(path + ".tmp", path)
-        with open(os.path.join(a.out, "history.json"), "w") as f:
-            json.dump(history, f, indent=1)
+            write_json(f"{mdl['name']}.json", mdl["net"].to_json())
+        write_json("history.json", history)
         say(f"checkpoint {tag}")
 
     while True:
@@ -401,12 +404,13 @@ def main():
             if got == 0:
                 time.sleep(0.01)
             continue
+        # The schedule: a 2 % warm-up, then a cosine decay to a tenth (train.rs).
         frac = steps / a.steps if a.steps else el / a.seconds
         warm = 0.02
+        scale = (frac / warm) if frac < warm else 0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * (frac - warm) / (1 - warm)))
         idx = torch.randint(0, filled, (a.batch,), device=dev)
-        batch = to_batch([r_[idx] for r_ in ring], dev)
+        batch = to_batch([r_[idx] for r_ in ring])
         for mdl in models:
-            scale = (frac / warm) if frac < warm else 0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * (frac - warm) / (1 - warm)))
             for g_ in mdl["opt"].param_groups:
                 g_["lr"] = mdl["lr"] * scale
             h, b, n = losses(mdl["net"], batch)

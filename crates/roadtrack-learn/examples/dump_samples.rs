@@ -87,17 +87,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let batch = roadtrack_learn::train::Batch::stack(chunk, s);
             let outputs = net.forward(batch.input_tensor(&device));
             let (h, b) = roadtrack_learn::train::losses(&outputs, &batch, &device);
-            let scalar = |t: roadtrack_learn::burn::prelude::Tensor<1>| -> f64 {
-                t.into_data()
-                    .try_to_vec::<f32>()
-                    .ok()
-                    .and_then(|v| v.first().copied())
-                    .map_or(f64::NAN, f64::from)
-            };
             // `losses` divides by the batch's centres: weigh each batch back by them.
             let k = batch.n_pos.max(1);
-            heat += scalar(h) * k as f64;
-            boxes += scalar(b) * k as f64;
+            heat += f64::from(roadtrack_learn::train::scalar(h)) * k as f64;
+            boxes += f64::from(roadtrack_learn::train::scalar(b)) * k as f64;
             n += batch.n_pos;
         }
         let n = n.max(1) as f64;

@@ -257,6 +257,15 @@ pub fn losses(out: &Outputs, batch: &Batch, device: &Device) -> (Tensor<1>, Tens
     (heat, boxes)
 }
 
+/// The value of a one-element tensor (a loss), NaN if it holds none.
+pub fn scalar(t: Tensor<1>) -> f32 {
+    t.into_data()
+        .try_to_vec::<f32>()
+        .ok()
+        .and_then(|v| v.first().copied())
+        .unwrap_or(f32::NAN)
+}
+
 /// A batch of samples, stacked.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Batch {
@@ -390,13 +399,6 @@ pub fn train(
                 let grads = GradientsParams::from_grads(grads, &model);
                 let lr = lr_at(cfg, step);
                 model = optim.step(lr, model, grads);
-                let scalar = |t: Tensor<1>| -> f32 {
-                    t.into_data()
-                        .try_to_vec::<f32>()
-                        .ok()
-                        .and_then(|v| v.first().copied())
-                        .unwrap_or(f32::NAN)
-                };
                 let loss = StepLoss {
                     step: step + 1,
                     learning_rate: lr,

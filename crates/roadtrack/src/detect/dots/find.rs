@@ -191,12 +191,11 @@ fn pixel_centre(blob: &[usize], w: usize) -> Point {
     Point::new(sx / n, sy / n)
 }
 
-/// The contrast of `blob` in an image of 3 values per pixel (`value(i)` the `i`-th value,
-/// row-major): the largest `|ΔR| + |ΔG| + |ΔB|` of a blob pixel from the per-channel
-/// median of the ring of pixels 2 or 3 px (Chebyshev) from the blob's centre pixel, inside
-/// the image; 0 with no ring.
-fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize]) -> f32 {
-    let c = pixel_centre(blob, w);
+/// The contrast of `blob` (centre `c`, its [`pixel_centre`]) in an image of 3 values per
+/// pixel (`value(i)` the `i`-th value, row-major): the largest `|ΔR| + |ΔG| + |ΔB|` of a
+/// blob pixel from the per-channel median of the ring of pixels 2 or 3 px (Chebyshev) from
+/// the blob's centre pixel, inside the image; 0 with no ring.
+fn contrast(value: impl Fn(usize) -> f32, w: usize, h: usize, blob: &[usize], c: Point) -> f32 {
     let (cx, cy) = (c.x.floor() as i64, c.y.floor() as i64);
     // Per channel, the ring's values (at most RING_LEN), on the stack: this runs for every
     // blob small enough to be a dot.
@@ -244,10 +243,16 @@ const RING_LEN: usize = 40;
 // the background. Against the difference (frame contrast ≥ 0.5 × difference) a walker in a
 // group, whose ring is half walkers, failed the test: the aerial crossing, seeds 4–6, HOTA
 // +0.004, against +0.012 this way (docs/EXPERIMENTS.md "Ghost dots").
-fn is_ghost(px: &[u8], mean: &[f32], w: usize, h: usize, blob: &[usize], ratio: f64) -> bool {
+fn is_ghost(
+    (px, mean): (&[u8], &[f32]),
+    (w, h): (usize, usize),
+    blob: &[usize],
+    centre: Point,
+    ratio: f64,
+) -> bool {
     ratio > 0.0
-        && f64::from(contrast(|i| f32::from(px[i]), w, h, blob))
-            < ratio * f64::from(contrast(|i| mean[i], w, h, blob))
+        && f64::from(contrast(|i| f32::from(px[i]), w, h, blob, centre))
+            < ratio * f64::from(contrast(|i| mean[i], w, h, blob, centre))
 }
 
 /// A lone dot beside its shadow gives the offset of shadows when the dot has at most this
@@ -307,13 +312,14 @@ pub(crate) fn find_dots(
         h,
         |i| diff[i] > 0.0,
         |blob| {
-            blob_info.push((blob.len(), pixel_centre(blob, w)));
+            let centre = pixel_centre(blob, w);
+            blob_info.push((blob.len(), centre));
             let id = blob_info.len() as u32;
             for &i in blob {
                 blob_of[i] = id;
             }
             if blob.len() > cfg.max_area_px as usize
-                || is_ghost(px, mean, w, h, blob, cfg.ghost_contrast_ratio)
+                || is_ghost((px, mean), (w, h), blob, centre, cfg.ghost_contrast_ratio)
             {
                 return;
             }
@@ -369,12 +375,14 @@ pub(crate) fn find_dots(
                 Some(_) => {}
                 None => {
                     let n = blob.len();
-                    if n >= cfg.dark_min_area_px as usize
-                        && n <= cfg.dark_max_area_px as usize
-                        && !is_ghost(px, mean, w, h, blob, cfg.ghost_contrast_ratio)
-                    {
-                        let weight = blob.iter().map(|&i| f64::from(shade[i])).sum();
-                        dark.push((pixel_centre(blob, w), weight, n as u32));
+                    if n >= cfg.dark_min_area_px as usize && n <= cfg.dark_max_area_px as usize {
+                        let centre = pixel_centre(blob, w);
+                        let ghost =
+                            is_ghost((px, mean), (w, h), blob, centre, cfg.ghost_contrast_ratio);
+                        if !ghost {
+                            let weight = blob.iter().map(|&i| f64::from(shade[i])).sum();
+                            dark.push((centre, weight, n as u32));
+                        }
                     }
                 }
             }
@@ -622,10 +630,15 @@ pub(super) mod tests {
         }
         let w = 9;
         let value = |i: usize| f32::from(img.as_raw()[i]);
-        assert_eq!(contrast(value, w, 9, &[4 * w + 4]), 40.0);
+        let at = |blob: &[usize], w| pixel_centre(blob, w);
+        assert_eq!(
+            contrast(value, w, 9, &[4 * w + 4], at(&[4 * w + 4], w)),
+            40.0
+        );
         // A blob in a corner has a part ring; an image with no ring gives 0.
-        assert_eq!(contrast(value, w, 9, &[0]), 0.0);
+        assert_eq!(contrast(value, w, 9, &[0], at(&[0], w)), 0.0);
         let one = RgbImage::from_pixel(1, 1, Rgb([5, 5, 5]));
-        assert_eq!(contrast(|i| f32::from(one.as_raw()[i]), 1, 1, &[0]), 0.0);
+        let value = |i: usize| f32::from(one.as_raw()[i]);
+        assert_eq!(contrast(value, 1, 1, &[0], at(&[0], 1)), 0.0);
     }
 }
