@@ -98,11 +98,18 @@ pub struct OnnxArgs {
     /// --detector cnn: lowest score kept on the shrunk pyramid level [default: 0.3].
     #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
     pub coarse_min_score: Option<f64>,
-    /// --detector cnn: also run the network on the frame enlarged twice and take its boxes
-    /// smaller than PX (frame px) as --zoom-mode says, for far objects (4× the compute);
-    /// with --calibration only the rows where a car is under PX px [default: off].
+    /// --detector cnn: also run the network on the frame enlarged twice (--zoom-factor) and
+    /// take its boxes smaller than PX (frame px) as --zoom-mode says, for far objects (4×
+    /// the compute); with --calibration only the rows where a car is under PX px
+    /// [default: off].
     #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub zoom_small: Option<f64>,
+    /// --detector cnn --zoom-small: the enlargement, 2–4 (K² times the full-size compute
+    /// over the enlarged rows); 3 for an oblique road whose far cars are under 8 px
+    /// [default: 2].
+    #[arg(long, value_name = "K", requires = "zoom_small",
+          value_parser = clap::value_parser!(u32).range(2..=4))]
+    pub zoom_factor: Option<u32>,
     /// --detector cnn --zoom-small: `level`, every box under PX comes from the enlarged
     /// frame; `add`, its boxes are added only where the other levels have none
     /// [default: level].
@@ -174,6 +181,7 @@ impl OnnxArgs {
             ("--coarse-min-score", self.coarse_min_score.is_some()),
             ("--zoom-small", self.zoom_small.is_some()),
             ("--zoom-mode", self.zoom_mode.is_some()),
+            ("--zoom-factor", self.zoom_factor.is_some()),
         ];
         flags.extend(self.cnn_switches());
         flags
@@ -198,6 +206,7 @@ impl OnnxArgs {
             ("--pyramid", self.pyramid.map(f64::from)),
             ("--coarse-min-score", self.coarse_min_score),
             ("--zoom-small", self.zoom_small),
+            ("--zoom-factor", self.zoom_factor.map(f64::from)),
         ];
         let mut out = String::new();
         for (flag, v) in valued {
@@ -269,6 +278,9 @@ impl OnnxArgs {
         }
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;
+        }
+        if let Some(k) = self.zoom_factor {
+            config.zoom_factor = k;
         }
         if let Some(mode) = self.zoom_mode {
             config.zoom_mode = match mode {

@@ -77,6 +77,15 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         &["--detector", "background", "--zoom-small", "12"][..],
         &["--detector", "cnn", "--zoom-small", "0"][..],
         &["--detector", "cnn", "--zoom-mode", "add"][..],
+        &["--detector", "cnn", "--zoom-factor", "3"][..],
+        &[
+            "--detector",
+            "cnn",
+            "--zoom-small",
+            "16",
+            "--zoom-factor",
+            "5",
+        ][..],
         &["--detector", "cnn", "--calibration", "c.toml"][..],
         &["--detector", "background", "--keep-nested"][..],
         &["--detector", "onnx", "--model", "m.onnx", "--no-flip"][..],
@@ -92,6 +101,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         let flag = [
             "--pyramid",
+            "--zoom-factor",
             "--zoom-small",
             "--coarse-min-score",
             "--calibration",

@@ -60,13 +60,16 @@ pub struct CenterNetConfig {
     /// Pyramid: a full-size vehicle detection lying at least this fraction inside a larger
     /// vehicle box of the shrunk level is dropped (a part of a large vehicle). Default 0.7.
     pub part_fraction: f64,
-    /// Zoom: when > 0, the network also runs on the frame enlarged twice (bilinear), for
-    /// objects too small for it at full size (far vehicles and walkers of an oblique view),
-    /// and its boxes whose longer side (in frame px) is below this are used as
-    /// [`CenterNetConfig::zoom_mode`] says. Four times the full-size level's compute; with
-    /// a calibration ([`CenterNetDetector::with_zoom_calibration`]) only the rows where
-    /// cars are that small are enlarged. Default 0 (off).
+    /// Zoom: when > 0, the network also runs on the frame enlarged
+    /// [`CenterNetConfig::zoom_factor`] times (bilinear), for objects too small for it at
+    /// full size (far vehicles and walkers of an oblique view), and its boxes whose longer
+    /// side (in frame px) is below this are used as [`CenterNetConfig::zoom_mode`] says.
+    /// `zoom_factor`² times the full-size level's compute; with a calibration
+    /// ([`CenterNetDetector::with_zoom_calibration`]) only the rows where cars are that
+    /// small are enlarged. Default 0 (off).
     pub zoom_max_side: f64,
+    /// Zoom: the enlargement of the zoomed level, 2–4. Default [`ZOOM`] (2).
+    pub zoom_factor: u32,
     /// Zoom: how the zoomed level's boxes join the others'. Default
     /// [`ZoomMode::Level`].
     pub zoom_mode: ZoomMode,
@@ -157,10 +160,11 @@ pub fn box_factor(terms: &[f64; 4], w: f64, h: f64) -> (f64, f64) {
 // box on it whatever its class; adjacent far cars of 8–12 px overlap less.
 pub const ZOOM_OVERLAP_IOU: f64 = 0.3;
 
-/// Zoom: the enlargement of the zoomed level.
+/// Zoom: the default enlargement of the zoomed level ([`CenterNetConfig::zoom_factor`]).
 // Choice: 2. A far car of 4–8 px becomes 8–16 px, sizes the network finds at full size
-// (road oblique vehicle recall 0.34 → 0.48, docs/DETECTION.md "Zoom"); 3 would cost nine
-// times the full-size level.
+// (road oblique vehicle recall 0.34 → 0.48, docs/DETECTION.md "Zoom"); 3 costs 2.25 times
+// the compute of 2 over the same rows and pays only where most objects are under 8 px
+// (the oblique road with a calibration; docs/DETECTION.md "Zoom factor").
 pub const ZOOM: u32 = 2;
 
 impl Default for CenterNetConfig {
@@ -197,6 +201,7 @@ impl Default for CenterNetConfig {
             // vehicles, seed 0); without a calibration it costs precision on the aerial
             // intersection and four times the compute (docs/DETECTION.md "Zoom").
             zoom_max_side: 0.0,
+            zoom_factor: ZOOM,
             // Choice: a level. Replacing the full-size level's small boxes, not only adding
             // where they are missing, gives them the zoomed level's placement: best HOTA
             // from video at PX 16, seeds 1–3, add → level: oblique road 0.381 → 0.406,
@@ -279,6 +284,13 @@ impl roadtrack::config::Validate for CenterNetConfig {
                 "CenterNetConfig",
                 "zoom_max_side",
                 format!("must be ≥ 0 px (0 = off), got {}", self.zoom_max_side),
+            ));
+        }
+        if !(2..=4).contains(&self.zoom_factor) {
+            return Err(Error::config(
+                "CenterNetConfig",
+                "zoom_factor",
+                format!("must be 2 to 4, got {}", self.zoom_factor),
             ));
         }
         if !(self.min_side.is_finite() && self.min_side >= 0.0) {
@@ -806,7 +818,7 @@ impl CenterNetDetector {
 
     /// The zoomed level: the rows it covers (frame px, `[top, bottom)`) and the heat-map
     /// peaks of the frame (or, with a calibration, of its [`zoom_rows`] with a margin of
-    /// `zoom_max_side` rows) enlarged [`ZOOM`] times (bilinear), in frame px, from
+    /// `zoom_max_side` rows) enlarged [`CenterNetConfig::zoom_factor`] times (bilinear), in frame px, from
     /// [`CenterNetConfig::min_side`] up to below [`CenterNetConfig::zoom_max_side`],
     /// centres inside the rows, class-wise NMS at [`CenterNetConfig::iou_threshold`]; best
     /// first. `None` where no row is enlarged.
@@ -827,13 +839,14 @@ impl CenterNetDetector {
             return Ok(None);
         }
         let band = image::imageops::crop_imm(image, 0, top, w, bottom - top).to_image();
+        let zoom = cfg.zoom_factor;
         let big = image::imageops::resize(
             &band,
-            w * ZOOM,
-            (bottom - top) * ZOOM,
+            w * zoom,
+            (bottom - top) * zoom,
             image::imageops::FilterType::Triangle,
         );
-        let z = f64::from(ZOOM);
+        let z = f64::from(zoom);
         let (y0, y1) = (f64::from(rows.0), f64::from(rows.1));
         let cands: Vec<Candidate> = decode_peaks(&self.heat_maps(&big)?, cfg.min_score)
             .into_iter()
