@@ -99,9 +99,9 @@ pub struct OnnxArgs {
     #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
     pub coarse_min_score: Option<f64>,
     /// --detector cnn: also run the network on the frame enlarged twice (--zoom-factor) and
-    /// take its boxes smaller than PX (frame px) as --zoom-mode says, for far objects (4×
-    /// the compute); with --calibration only the rows where a car is under PX px
-    /// [default: off].
+    /// take its boxes smaller than PX (frame px) as --zoom-mode says, for far objects and
+    /// walkers side by side (4× the compute); with --calibration only the rows where a car
+    /// is under PX px [default: off].
     #[arg(long, value_name = "PX", value_parser = crate::flags::positive)]
     pub zoom_small: Option<f64>,
     /// --detector cnn --zoom-small: the enlargement, 2–4 (K² times the full-size compute

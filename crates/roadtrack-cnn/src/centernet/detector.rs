@@ -818,10 +818,10 @@ impl CenterNetDetector {
 
     /// The zoomed level: the rows it covers (frame px, `[top, bottom)`) and the heat-map
     /// peaks of the frame (or, with a calibration, of its [`zoom_rows`] with a margin of
-    /// `zoom_max_side` rows) enlarged [`CenterNetConfig::zoom_factor`] times (bilinear), in frame px, from
-    /// [`CenterNetConfig::min_side`] up to below [`CenterNetConfig::zoom_max_side`],
-    /// centres inside the rows, class-wise NMS at [`CenterNetConfig::iou_threshold`]; best
-    /// first. `None` where no row is enlarged.
+    /// `zoom_max_side` rows) enlarged [`CenterNetConfig::zoom_factor`] times (bilinear),
+    /// in frame px, from [`CenterNetConfig::min_side`] up to below
+    /// [`CenterNetConfig::zoom_max_side`], centres inside the rows, class-wise NMS at
+    /// [`CenterNetConfig::iou_threshold`]; best first. `None` where no row is enlarged.
     fn zoom_level(&self, image: &RgbImage) -> Result<Option<ZoomLevel>> {
         let cfg = &self.config;
         let (w, h) = image.dimensions();
