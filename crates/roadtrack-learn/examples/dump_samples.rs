@@ -6,10 +6,11 @@
 //!
 //! Episodes use simulator seeds `SIM_SEED_FIRST`, `+ SIM_SEED_STEP`, … (one worker per
 //! residue, so that workers never render the same episode), rendered and corrupted as
-//! `roadtrack_learn::train` renders them (`render_episode`, `DataConfig::default()`). Each
-//! episode's frames join a pool of the last 48 frames, as in the trainer, and
-//! `SAMPLES_PER_EPISODE` crops are drawn from the pool (`make_sample`). Runs until
-//! `EPISODES` episodes (default: until stdout closes).
+//! `roadtrack_learn::train` renders them (`render_episode`, `DataConfig::default()`,
+//! `train::episode_rng`). Each episode's frames join a pool of the last
+//! `TrainConfig::pool_frames` (48) frames, as in the trainer, and `SAMPLES_PER_EPISODE`
+//! crops are drawn from the pool (`make_sample`). Runs until `EPISODES` episodes (default:
+//! until stdout closes).
 //!
 //! Records as `roadtrack_learn::record` writes them.
 //!
@@ -42,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => u64::MAX,
     };
     let data = DataConfig::default();
+    let pool_frames = roadtrack_learn::train::TrainConfig::default().pool_frames;
     let prep = training_preprocessing();
     let mut crop_rng = Pcg64Mcg::seed_from_u64(seed ^ first.wrapping_mul(0xD1B5_4A32_D192_ED03));
     let mut pool: Vec<TrainFrame> = Vec::new();
@@ -56,12 +58,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let s = data.crop;
     for e in 0..episodes {
         let sim_seed = first + e * step;
-        // The trainer's per-episode RNG (`train::produce`).
-        let mut rng = Pcg64Mcg::seed_from_u64(seed ^ sim_seed.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut rng = roadtrack_learn::train::episode_rng(seed, sim_seed);
         let frames = render_episode(sim_seed, &mut rng, &data)?;
         pool.extend(frames);
-        if pool.len() > 48 {
-            pool.drain(..pool.len() - 48);
+        if pool.len() > pool_frames {
+            pool.drain(..pool.len() - pool_frames);
         }
         for _ in 0..per_episode {
             let f = &pool[crop_rng.random_range(0..pool.len())];
