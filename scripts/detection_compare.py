@@ -20,6 +20,9 @@ are passed too, `{seq}` standing for the sequence folder (`'name=p.toml --calibr
 With --cnn-model, the learned detector (`--detector cnn`) gets a row too, and a second
 table gives its recall and precision for vehicles and pedestrians separately (precision
 over the detections it labels vehicle or pedestrian; matching stays class-agnostic).
+With --recipes it runs with each scene's own detect flags, those of the scene's pipeline
+from video (docs/TRACKING.md; `scripts/refine_table.py` RECIPES: the mirror upside down from
+above, the zoom on the oblique road and intersection, `--min-score 0.5` on the crossing).
 
 Not part of the test suite; needs `pip install opencv-python-headless numpy`.
 
@@ -273,6 +276,10 @@ def main():
                     help="'name=path.toml [flags]': a background-detector row with --config "
                          "path.toml and any flags; {seq} stands for the sequence folder, e.g. "
                          "'peds=p.toml --calibration {seq}/calibration.toml'")
+    ap.add_argument("--recipes", action="store_true",
+                    help="the learned detector with each scene's own detect flags, those of its "
+                         "pipeline from video (scripts/refine_table.py RECIPES), before "
+                         "--cnn-args; needs refine_table's imports (numpy, norfair)")
     ap.add_argument("--only-cnn", action="store_true",
                     help="only the learned detector's rows (no background detectors, no OpenCV)")
     a = ap.parse_args()
@@ -309,9 +316,14 @@ def main():
                 runs[name] = read_ours(out)
             if a.cnn_model:
                 out = f"{seq}/det_cnn.csv"
+                if a.recipes:
+                    from refine_table import RECIPES
+                    flags = [f.replace("{seq}", seq) for f in RECIPES[f"{scene}-{view}"][1]]
+                else:
+                    flags = []
+                flags += a.cnn_args.replace("{seq}", seq).split()
                 subprocess.run([a.roadtrack, "-q", "detect", seq, "-o", out, "--detector", "cnn",
-                                "--model", a.cnn_model,
-                                *a.cnn_args.replace("{seq}", seq).split()], check=True)
+                                "--model", a.cnn_model, *flags], check=True)
                 runs["learned (cnn)"] = read_ours(out)
                 groups.append((scene, view, score_groups(gt, read_ours(out, True), a.frames,
                                                          frame_size(seq))))
