@@ -98,6 +98,12 @@ pub struct OnnxArgs {
     /// --detector cnn: lowest score kept on the shrunk pyramid level [default: 0.3].
     #[arg(long, value_name = "S", value_parser = crate::flags::probability)]
     pub coarse_min_score: Option<f64>,
+    /// --detector cnn: lowest score per class, at every level, in place of --min-score and
+    /// --coarse-min-score, e.g. lorry=0.2 (classes car, lorry, motorcycle, pedestrian)
+    /// [default: none].
+    #[cfg(feature = "cnn")]
+    #[arg(long, value_name = "CLASS=S,…", value_parser = roadtrack_cnn::centernet::ClassMinScore::parse)]
+    pub class_min_score: Option<roadtrack_cnn::centernet::ClassMinScore>,
     /// --detector cnn: also run the network on the frame enlarged twice (--zoom-factor) and
     /// take its boxes smaller than PX (frame px) as --zoom-mode says, for far objects and
     /// walkers side by side (4× the compute); with --calibration only the rows where a car
@@ -183,6 +189,8 @@ impl OnnxArgs {
             ("--zoom-mode", self.zoom_mode.is_some()),
             ("--zoom-factor", self.zoom_factor.is_some()),
         ];
+        #[cfg(feature = "cnn")]
+        flags.push(("--class-min-score", self.class_min_score.is_some()));
         flags.extend(self.cnn_switches());
         flags
     }
@@ -219,6 +227,15 @@ impl OnnxArgs {
                 ZoomModeArg::Level => " --zoom-mode level",
                 ZoomModeArg::Add => " --zoom-mode add",
             });
+        }
+        #[cfg(feature = "cnn")]
+        if let Some(c) = &self.class_min_score {
+            let given: Vec<String> = roadtrack_cnn::centernet::ClassMinScore::NAMES
+                .iter()
+                .zip(c.by_channel())
+                .filter_map(|(name, v)| v.map(|v| format!("{name}={v}")))
+                .collect();
+            out.push_str(&format!(" --class-min-score {}", given.join(",")));
         }
         for (flag, on) in self.cnn_switches() {
             if on {
@@ -275,6 +292,9 @@ impl OnnxArgs {
         }
         if let Some(s) = self.coarse_min_score {
             config.coarse_min_score = s;
+        }
+        if let Some(c) = self.class_min_score {
+            config.class_min_score = c;
         }
         if let Some(px) = self.zoom_small {
             config.zoom_max_side = px;

@@ -4,6 +4,7 @@
 
 mod common;
 use common::{bin, fixture, stderr};
+use roadtrack::class::ObjectClass;
 use std::path::{Path, PathBuf};
 
 fn cnn_fixture(name: &str) -> PathBuf {
@@ -91,6 +92,9 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
         &["--detector", "onnx", "--model", "m.onnx", "--no-flip"][..],
         &["--detector", "background", "--flip-vertical"][..],
         &["--detector", "background", "--keep-second-peaks"][..],
+        &["--detector", "background", "--class-min-score", "lorry=0.2"][..],
+        &["--detector", "cnn", "--class-min-score", "lorry=1.5"][..],
+        &["--detector", "cnn", "--class-min-score", "van=0.2"][..],
     ] {
         let o = bin()
             .arg("detect")
@@ -110,6 +114,7 @@ fn a_model_that_is_not_the_learned_detector_is_bad_input_naming_the_file() {
             "--flip-vertical",
             "--zoom-mode",
             "--keep-second-peaks",
+            "--class-min-score",
         ]
         .into_iter()
         .find(|f| args.contains(f))
@@ -159,6 +164,45 @@ fn detect_tiny(model: &Path, dir: &Path, extra: &[&str], name: &str) -> PathBuf 
     let args = [&["--model", model, "--min-score", "0.05"][..], extra].concat();
     detect_cnn(&fixture("tiny_sequence"), &args, &out);
     out
+}
+
+/// `--class-min-score`: a class given its own floor keeps its boxes from that score on,
+/// the other classes keep the common one; a walker's box is never dropped by a vehicle's.
+#[test]
+fn a_class_floor_keeps_that_class_lower_and_leaves_the_others() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = shipped_model();
+    let model = model.to_str().expect("a UTF-8 model path");
+    let run = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let args = [&["--model", model, "--min-score", "0.5"][..], extra].concat();
+        detect_cnn(&fixture("tiny_sequence"), &args, &out);
+        roadtrack::io::detections::read_detections(&out).expect("read output")
+    };
+    let common = run(&[], "common.csv");
+    let floor = run(&["--class-min-score", "car=0.05"], "floor.csv");
+    let score = |d: &roadtrack::detection::Detection| d.score.unwrap_or(0.0);
+    let is = |d: &roadtrack::detection::Detection, c: ObjectClass| d.class.as_ref() == Some(&c);
+    assert!(common.iter().all(|d| score(d) >= 0.5));
+    let low_cars = floor
+        .iter()
+        .filter(|d| is(d, ObjectClass::Car) && score(d) < 0.5)
+        .count();
+    assert!(low_cars > 0, "no car box under 0.5 on the tiny sequence");
+    assert!(floor.iter().all(|d| score(d) >= 0.05));
+    assert!(
+        floor
+            .iter()
+            .filter(|d| !is(d, ObjectClass::Car))
+            .all(|d| score(d) >= 0.5)
+    );
+    let walkers = |v: &[roadtrack::detection::Detection]| -> Vec<_> {
+        v.iter()
+            .filter(|d| is(d, ObjectClass::Pedestrian))
+            .map(|d| (d.frame, d.pos_px, d.size_px))
+            .collect()
+    };
+    assert_eq!(walkers(&floor), walkers(&common));
 }
 
 /// `--motion-gate`: the same boxes, less those on static background (a box on the tiny

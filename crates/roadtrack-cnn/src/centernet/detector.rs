@@ -51,6 +51,11 @@ pub struct CenterNetConfig {
     pub pyramid: u32,
     /// Pyramid: heat-map peaks of the shrunk level below this are dropped. Default 0.3.
     pub coarse_min_score: f64,
+    /// Per-class lowest scores (`[class_min_score]`, `--class-min-score`): a class given
+    /// here keeps its heat-map peaks from this score on, at every level, in place of
+    /// [`CenterNetConfig::min_score`] and [`CenterNetConfig::coarse_min_score`]. Default:
+    /// none given.
+    pub class_min_score: ClassMinScore,
     /// Pyramid: a full-size detection whose longer side is at least this (px) is left to
     /// the shrunk level. Default 96.
     pub fine_max_side: f64,
@@ -124,6 +129,67 @@ pub enum ZoomMode {
     Add,
 }
 
+/// Lowest score per heat-map channel ([`CenterNetConfig::class_min_score`]); a class left
+/// out keeps the level's own threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClassMinScore {
+    /// Cars.
+    pub car: Option<f64>,
+    /// Lorries and buses (the bus/truck channel).
+    pub lorry: Option<f64>,
+    /// Motorcycles and bicycles.
+    pub motorcycle: Option<f64>,
+    /// Pedestrians.
+    pub pedestrian: Option<f64>,
+}
+
+impl ClassMinScore {
+    /// The names `--class-min-score` and the TOML table take, in channel order.
+    pub const NAMES: [&'static str; CLASSES] = ["car", "lorry", "motorcycle", "pedestrian"];
+
+    /// The given scores in channel order.
+    pub fn by_channel(&self) -> [Option<f64>; CLASSES] {
+        [self.car, self.lorry, self.motorcycle, self.pedestrian]
+    }
+
+    /// The threshold of each channel at a level whose own threshold is `level`.
+    pub fn thresholds(&self, level: f64) -> [f64; CLASSES] {
+        self.by_channel().map(|v| v.unwrap_or(level))
+    }
+
+    /// `CLASS=S[,CLASS=S…]` (`--class-min-score`): class names as [`ClassMinScore::NAMES`]
+    /// (or `truck`, `bus`, `bicycle`), scores in `[0, 1]`.
+    pub fn parse(text: &str) -> std::result::Result<Self, String> {
+        let mut out = Self::default();
+        for item in text.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+            let (name, value) = item
+                .split_once('=')
+                .ok_or_else(|| format!("`{item}`: expected CLASS=SCORE, e.g. lorry=0.2"))?;
+            let v: f64 = value
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| (0.0..=1.0).contains(v))
+                .ok_or_else(|| format!("`{item}`: the score must be a number in [0, 1]"))?;
+            let slot = match name.trim() {
+                "car" => &mut out.car,
+                "lorry" | "truck" | "bus" => &mut out.lorry,
+                "motorcycle" | "bicycle" => &mut out.motorcycle,
+                "pedestrian" => &mut out.pedestrian,
+                other => {
+                    return Err(format!(
+                        "`{other}`: unknown class; one of {}",
+                        Self::NAMES.join(", ")
+                    ));
+                }
+            };
+            *slot = Some(v);
+        }
+        Ok(out)
+    }
+}
+
 /// The model metadata key of the box gain ([`CenterNetConfig::box_gain`]): sixteen
 /// comma-separated numbers, `a_w, b_w, a_h, b_h` for each heat-map channel (car, bus/truck,
 /// bicycle/motorcycle, pedestrian), the terms of [`box_factor`].
@@ -194,6 +260,10 @@ impl Default for CenterNetConfig {
             // intersection 0.28 / 0.67 → 0.39 / 0.72 and the crossing 0.04 / 0.53 →
             // 0.26 / 0.60, aerial scenes unchanged; 0.2 lost precision (crossing 0.43).
             coarse_min_score: 0.3,
+            // Choice: none. Lorries' and buses' peaks run lower than cars' (docs/DETECTION.md
+            // "Lowest score per class"); the pipelines that gain from a lower floor for them
+            // ask for it.
+            class_min_score: ClassMinScore::default(),
             fine_max_side: 96.0,
             coarse_min_side: 48.0,
             part_fraction: 0.7,
@@ -309,6 +379,20 @@ impl roadtrack::config::Validate for CenterNetConfig {
                     "CenterNetConfig",
                     field,
                     format!("must be > 0 px, got {v}"),
+                ));
+            }
+        }
+        for (name, v) in ClassMinScore::NAMES
+            .iter()
+            .zip(self.class_min_score.by_channel())
+        {
+            if let Some(v) = v
+                && !(0.0..=1.0).contains(&v)
+            {
+                return Err(Error::config(
+                    "CenterNetConfig",
+                    format!("class_min_score.{name}"),
+                    format!("must be in [0, 1], got {v}"),
                 ));
             }
         }
@@ -794,7 +878,10 @@ impl CenterNetDetector {
     /// full-size vehicle box lying mostly inside a larger coarse vehicle box is dropped.
     fn pyramid_candidates(&self, image: &RgbImage) -> Result<Vec<Candidate>> {
         let cfg = &self.config;
-        let fine = decode_peaks(&self.heat_maps(image)?, cfg.min_score);
+        let fine = decode_peaks(
+            &self.heat_maps(image)?,
+            &cfg.class_min_score.thresholds(cfg.min_score),
+        );
         let k = cfg.pyramid;
         if k <= 1
             || image.width() < k * INPUT_MULTIPLE as u32
@@ -803,7 +890,10 @@ impl CenterNetDetector {
             return Ok(fine);
         }
         let small = shrink(image, k);
-        let coarse = decode_peaks(&self.heat_maps(&small)?, cfg.coarse_min_score);
+        let coarse = decode_peaks(
+            &self.heat_maps(&small)?,
+            &cfg.class_min_score.thresholds(cfg.coarse_min_score),
+        );
         Ok(merge_levels(fine, coarse, k, cfg))
     }
 
@@ -848,7 +938,8 @@ impl CenterNetDetector {
         );
         let z = f64::from(zoom);
         let (y0, y1) = (f64::from(rows.0), f64::from(rows.1));
-        let cands: Vec<Candidate> = decode_peaks(&self.heat_maps(&big)?, cfg.min_score)
+        let floor = cfg.class_min_score.thresholds(cfg.min_score);
+        let cands: Vec<Candidate> = decode_peaks(&self.heat_maps(&big)?, &floor)
             .into_iter()
             .map(|c| Candidate {
                 cx: c.cx / z,

@@ -26,7 +26,8 @@ mod views;
 
 pub use detector::{
     BOX_GAIN_KEY, BOX_GAIN_REF_PX, BOX_GAIN_SIZE_RANGE_PX, CenterNetConfig, CenterNetDense,
-    CenterNetDetector, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, ZoomMode, box_factor, default_model_path,
+    CenterNetDetector, ClassMinScore, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, ZoomMode, box_factor,
+    default_model_path,
 };
 pub use views::{
     ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, drop_second_peaks,

@@ -37,7 +37,7 @@ fn peaks_decode_to_boxes_in_image_pixels() {
     maps.boxes[n + i] = (6.0f32 / 4.0).ln();
     maps.boxes[2 * n + i] = 0.25;
     maps.boxes[3 * n + i] = 0.75;
-    let got = decode_peaks(&maps, 0.3);
+    let got = decode_peaks(&maps, &[0.3; CLASSES]);
     assert_eq!(got.len(), 1, "{got:?}");
     let c: Candidate = got[0];
     assert_eq!(c.class, 0);
@@ -49,7 +49,24 @@ fn peaks_decode_to_boxes_in_image_pixels() {
         (c.w - 10.0).abs() < 1e-4 && (c.h - 6.0).abs() < 1e-4,
         "{c:?}"
     );
-    assert_eq!(decode_peaks(&maps, 0.1).len(), 2);
+    assert_eq!(decode_peaks(&maps, &[0.1; CLASSES]).len(), 2);
+    // A channel's own floor: the pedestrian peak of 0.2 is kept at a pedestrian floor of
+    // 0.15 while the car channel keeps 0.3; the car peak goes at a car floor of 0.95.
+    let floor = ClassMinScore {
+        pedestrian: Some(0.15),
+        ..ClassMinScore::default()
+    };
+    let got = decode_peaks(&maps, &floor.thresholds(0.3));
+    assert_eq!(got.iter().map(|c| c.class).collect::<Vec<_>>(), [0, 3]);
+    let floor = ClassMinScore {
+        car: Some(0.95),
+        ..ClassMinScore::default()
+    };
+    assert!(
+        decode_peaks(&maps, &floor.thresholds(0.1))
+            .iter()
+            .all(|c| c.class == 3)
+    );
     // The score map of the pedestrian channel is that plane at stride 4.
     let m = score_map_of(&maps, &[3]);
     assert_eq!((m.cols, m.rows, m.stride_px), (6, 5, 4.0));
@@ -819,4 +836,31 @@ fn the_average_of_networks_is_their_element_wise_mean() -> Result<()> {
     assert!(msg.contains("network 2"), "{msg}");
     assert!(CenterNetWeights::average(&[]).is_err());
     Ok(())
+}
+
+#[test]
+fn class_min_scores_parse_by_name_and_are_checked() {
+    let c = ClassMinScore::parse("lorry=0.2, motorcycle=0.35").unwrap();
+    assert_eq!(c.by_channel(), [None, Some(0.2), Some(0.35), None]);
+    assert_eq!(c.thresholds(0.4), [0.4, 0.2, 0.35, 0.4]);
+    assert_eq!(
+        ClassMinScore::parse("truck=0.25").unwrap().lorry,
+        Some(0.25)
+    );
+    for bad in ["lorry", "lorry=1.5", "lorry=x", "van=0.2"] {
+        assert!(ClassMinScore::parse(bad).is_err(), "{bad}");
+    }
+    use roadtrack::config::Validate as _;
+    let config = CenterNetConfig {
+        class_min_score: ClassMinScore {
+            pedestrian: Some(-0.1),
+            ..ClassMinScore::default()
+        },
+        ..CenterNetConfig::default()
+    };
+    let m = config.validate().expect_err("out of range").to_string();
+    assert!(m.contains("class_min_score.pedestrian"), "{m}");
+    let toml: CenterNetConfig = toml::from_str("[class_min_score]\nlorry = 0.2\n").unwrap();
+    assert_eq!(toml.class_min_score.lorry, Some(0.2));
+    assert!(toml::from_str::<CenterNetConfig>("[class_min_score]\nvan = 0.2\n").is_err());
 }

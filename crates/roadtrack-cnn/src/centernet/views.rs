@@ -322,15 +322,16 @@ pub fn score_map_of(maps: &HeatMaps, channels: &[usize]) -> ScoreMap {
     }
 }
 
-/// Heat-map peaks (a cell at least as high as its 8 neighbours, ≥ `min_score`) as boxes
-/// in image px: centre `4 (cell + offset)`, size `4 e^s`.
-pub fn decode_peaks(maps: &HeatMaps, min_score: f64) -> Vec<Candidate> {
+/// Heat-map peaks (a cell at least as high as its 8 neighbours, ≥ its channel's
+/// `min_score`) as boxes in image px: centre `4 (cell + offset)`, size `4 e^s`.
+pub fn decode_peaks(maps: &HeatMaps, min_score: &[f64; CLASSES]) -> Vec<Candidate> {
     let (rows, cols) = (maps.rows, maps.cols);
     let n = rows * cols;
     let s = STRIDE as f64;
     let mut out = Vec::new();
     for k in 0..CLASSES {
         let plane = &maps.heat[k * n..(k + 1) * n];
+        let min_score = min_score[k];
         for r in 0..rows {
             for c in 0..cols {
                 let v = plane[r * cols + c];
