@@ -12,8 +12,10 @@
 //!   sub-cell offset `dx`, `dy` in cells.
 //!
 //! This module holds the architecture (shared with the trainer), the ONNX writer
-//! ([`onnx_model`]) and the detector ([`CenterNetDetector`], in `detector.rs`).
+//! ([`onnx_model`]) and the detector ([`CenterNetDetector`], in `detector.rs`; its settings
+//! in `config.rs`).
 
+mod config;
 mod detector;
 #[cfg(test)]
 mod level_tests;
@@ -24,11 +26,11 @@ mod native_tests;
 mod tests;
 mod views;
 
-pub use detector::{
-    BOX_GAIN_KEY, BOX_GAIN_REF_PX, BOX_GAIN_SIZE_RANGE_PX, CenterNetConfig, CenterNetDense,
-    CenterNetDetector, ClassMinScore, HeatMaps, ZOOM, ZOOM_OVERLAP_IOU, ZoomMode, box_factor,
-    default_model_path,
+pub use config::{
+    BOX_GAIN_KEY, BOX_GAIN_REF_PX, BOX_GAIN_SIZE_RANGE_PX, CenterNetConfig, ClassMinScore, ZOOM,
+    ZOOM_OVERLAP_IOU, ZoomMode, box_factor,
 };
+pub use detector::{CenterNetDense, CenterNetDetector, HeatMaps, default_model_path};
 pub use views::{
     ZOOM_CAR_LENGTH_M, add_zoomed, average_flipped, decode_peaks, drop_nested, drop_second_peaks,
     flip_input, merge_levels, replace_small, score_map_of, shrink, zoom_rows,

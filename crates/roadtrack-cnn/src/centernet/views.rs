@@ -6,7 +6,8 @@
 use image::RgbImage;
 use tract_onnx::prelude::tract_ndarray;
 
-use super::detector::{CenterNetConfig, HeatMaps, ZOOM_OVERLAP_IOU};
+use super::config::{CenterNetConfig, ZOOM_OVERLAP_IOU};
+use super::detector::HeatMaps;
 use super::{CLASSES, STRIDE, channel_class};
 use crate::detector::decode::Candidate;
 use roadtrack::calibration::Calibration;
