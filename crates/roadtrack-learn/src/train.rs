@@ -325,14 +325,14 @@ impl Batch {
     }
 }
 
-/// Renders episodes `0, 1, …` on this thread and sends them down `tx` until the receiver
-/// hangs up.
 /// The random source an episode of simulator seed `sim_seed` is rendered with, under the
 /// training seed `seed` (`TrainConfig::seed`); `examples/dump_samples.rs` draws the same.
 pub fn episode_rng(seed: u64, sim_seed: u64) -> Pcg64Mcg {
     Pcg64Mcg::seed_from_u64(seed ^ sim_seed.wrapping_mul(0x9E37_79B9_7F4A_7C15))
 }
 
+/// Renders episodes `0, 1, …` on this thread and sends them down `tx` until the receiver
+/// hangs up.
 fn produce(cfg: &TrainConfig, tx: &mpsc::SyncSender<Result<Vec<TrainFrame>>>) {
     for e in 0u64.. {
         let sim_seed = cfg.sim_seed_base + e;
