@@ -11,6 +11,7 @@
 //! this crate alone.
 
 pub mod calibration;
+pub mod camera;
 pub mod class;
 pub mod config;
 pub mod detection;

@@ -13,7 +13,8 @@
 //! ([`assignment`]).
 
 pub use roadtrack_core::{
-    calibration, class, config, detection, error, frame, geometry, io, limits, rng, track_point,
+    calibration, camera, class, config, detection, error, frame, geometry, io, limits, rng,
+    track_point,
 };
 
 pub mod analysis;
