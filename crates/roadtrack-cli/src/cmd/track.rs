@@ -23,11 +23,12 @@ use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
 use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::smooth::SmoothStage;
+use roadtrack::track::walker_box::{WalkerBoxConfig, WalkerBoxStage};
 use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The likelihood h(y | x) of pf and phd.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -92,6 +93,12 @@ pub struct Args {
     /// Write the trajectories on the ground as GeoJSON (needs --calibration).
     #[arg(long, value_name = "F.geojson", requires = "calibration")]
     pub geojson: Option<PathBuf>,
+    /// Cameras that see people from the side: give each pedestrian's box the size of a
+    /// walker's body at its place on the ground, turned to the walk, through the camera
+    /// recovered from the calibration (needs --calibration with perspective; docs/TRACKING.md
+    /// "Walkers' boxes from a body model").
+    #[arg(long, requires = "calibration", conflicts_with = "as_published")]
+    pub walker_boxes: bool,
     /// Random seed (MRF Gibbs sampler, particle filters).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -380,6 +387,22 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         // After the life cycle: its coasted boxes are smoothed with the others, and the
         // ground positions and speeds below come from the smoothed boxes.
         stages.push(Box::new(SmoothStage::new(smooth)?));
+    }
+    if args.walker_boxes
+        && let Some(cal) = &calibration
+    {
+        // Choice: after the smoothing, whose centres it keeps and whose heights it fits.
+        let stage = WalkerBoxStage::new(WalkerBoxConfig::default(), cal, info.width, info.height)
+            .with_context(|| {
+            format!(
+                "--walker-boxes: {}",
+                args.calibration
+                    .as_deref()
+                    .unwrap_or(Path::new(""))
+                    .display()
+            )
+        })?;
+        stages.push(Box::new(stage));
     }
     if let Some(cal) = &calibration {
         // Boxes standing above the horizon (far objects, detector noise) cannot be mapped.

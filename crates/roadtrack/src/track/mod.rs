@@ -21,6 +21,7 @@ pub mod pipeline;
 pub mod relaxation;
 pub mod replay;
 pub mod smooth;
+pub mod walker_box;
 
 pub use method::{Method, MethodConfig, track_frames, track_source};
 pub use pipeline::{Pipeline, PointSink, PointStage, RunSummary};

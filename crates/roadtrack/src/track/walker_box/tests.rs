@@ -1,0 +1,243 @@
+use super::*;
+use crate::track::frames_of;
+use crate::track_point::TrackPoint;
+use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};
+
+/// A camera 12 m up at (0, −30) looking along `+y`, 0.5 rad down, f = 512 px, its
+/// principal point at the centre of 640 × 480 px: the ground homography of that view.
+fn calibration() -> Calibration {
+    let (s, c) = 0.5_f64.sin_cos();
+    let (f, cu, cv) = (512.0, 320.0, 240.0);
+    let rows = [[1.0, 0.0, 0.0], [0.0, -s, -c], [0.0, c, -s]];
+    let centre = [0.0, -30.0, 12.0];
+    let t: Vec<f64> = rows
+        .iter()
+        .map(|r| -(r[0] * centre[0] + r[1] * centre[1] + r[2] * centre[2]))
+        .collect();
+    let k = [[f, 0.0, cu], [0.0, f, cv], [0.0, 0.0, 1.0]];
+    let mut h = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for (j, col) in [0, 1, 3].into_iter().enumerate() {
+            h[i][j] = (0..3)
+                .map(|l| k[i][l] * if col < 3 { rows[l][col] } else { t[l] })
+                .sum();
+        }
+    }
+    Calibration::from_homography(h).expect("a valid homography")
+}
+
+fn camera() -> Pinhole {
+    Pinhole::from_calibration(&calibration(), 640, 480).expect("a perspective view")
+}
+
+/// The point of track `id` in `frame` with box `b`.
+fn point(frame: u32, id: u64, class: ObjectClass, b: BBox) -> TrackPoint {
+    crate::track::point_at(frame, id, class, b)
+}
+
+/// A walker 1.8 m tall at `(x0 + v·t, y)`, facing `heading`, its box the body's image
+/// with the width scaled by `w_err(frame)`: the detector's guess.
+fn walker(
+    id: u64,
+    frames: std::ops::RangeInclusive<u32>,
+    (x0, y, v): (f64, f64, f64),
+    heading: f64,
+    w_err: impl Fn(u32) -> f64,
+) -> Vec<TrackPoint> {
+    let (cam, cfg) = (camera(), WalkerBoxConfig::default());
+    frames
+        .map(|f| {
+            let x = x0 + v * f64::from(f - 1) / 10.0;
+            let b = walker_box(&cam, &cfg, (x, y), heading, 1.8).expect("in front");
+            let b = BBox::from_centre(b.centre(), b.width * w_err(f), b.height);
+            point(f, id, ObjectClass::Pedestrian, b)
+        })
+        .collect()
+}
+
+fn run(points: &[TrackPoint], n: u32) -> Result<(Vec<FramePoints>, usize)> {
+    let mut stage = WalkerBoxStage::new(WalkerBoxConfig::default(), &calibration(), 640, 480)?;
+    for f in frames_of(points, n) {
+        assert!(stage.push(f)?.is_empty(), "the stage holds every frame");
+    }
+    let out = stage.finish()?;
+    Ok((out, stage.changed()))
+}
+
+fn boxes(out: &[FramePoints], id: u64) -> Vec<BBox> {
+    out.iter()
+        .flat_map(|f| f.points.iter().filter(|p| p.id == id))
+        .map(|p| p.bbox)
+        .collect()
+}
+
+/// The body seen through the camera recovered from a simulated crossing's calibration,
+/// at each walker's true place, heading and size, is that walker's `gt.txt` box.
+#[test]
+fn the_body_model_gives_the_simulators_walker_boxes() -> Result<()> {
+    let sim = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames: 3,
+        ..Default::default()
+    };
+    let run = simulate_in_memory(&sim, 3)?;
+    let (w, h) = (run.frames[0].image.width(), run.frames[0].image.height());
+    let cam = Pinhole::from_calibration(&run.calibration, w, h)?;
+    let mut n = 0;
+    for t in &run.truth {
+        let b = t.bbox;
+        let inside = b.left > 1.0
+            && b.top > 1.0
+            && b.right() < f64::from(w) - 1.0
+            && b.bottom() < f64::from(h) - 1.0;
+        if t.class != ObjectClass::Pedestrian || !inside {
+            continue;
+        }
+        let cfg = WalkerBoxConfig {
+            depth_m: t.length_m,
+            width_m: t.width_m,
+            ..WalkerBoxConfig::default()
+        };
+        let m = walker_box(
+            &cam,
+            &cfg,
+            (t.x_m, t.y_m),
+            t.heading_deg.to_radians(),
+            t.height_m,
+        )
+        .expect("in front");
+        for (got, want) in [
+            (m.left, b.left),
+            (m.top, b.top),
+            (m.width, b.width),
+            (m.height, b.height),
+        ] {
+            assert!((got - want).abs() < 0.05, "walker {}: {m:?} {b:?}", t.id);
+        }
+        n += 1;
+    }
+    assert!(n >= 20, "{n} walkers checked");
+    Ok(())
+}
+
+/// A walker's boxes, their widths guessed 30 % too wide or too narrow in turn, take the
+/// body's width for the walk and the height fitted to the boxes (1.8 m, not the prior);
+/// the centres stay.
+#[test]
+fn a_walkers_boxes_take_the_bodys_shape_for_their_walk() -> Result<()> {
+    let truth = walker(1, 1..=40, (-3.0, 5.0, 1.4), 0.0, |_| 1.0);
+    let guessed = walker(1, 1..=40, (-3.0, 5.0, 1.4), 0.0, |f| {
+        if f % 2 == 0 { 1.3 } else { 0.7 }
+    });
+    let (out, changed) = run(&guessed, 40)?;
+    assert_eq!(changed, 40);
+    for ((got, want), before) in boxes(&out, 1).iter().zip(&truth).zip(&guessed) {
+        let w = want.bbox;
+        assert!(
+            (got.width - w.width).abs() < 0.02 * w.width,
+            "{got:?} {w:?}"
+        );
+        assert!(
+            (got.height - w.height).abs() < 0.01 * w.height,
+            "{got:?} {w:?}"
+        );
+        let (c, c0) = (got.centre(), before.bbox.centre());
+        assert!(c.distance(c0) < 1e-9, "centre moved");
+    }
+    // The same walker walking along y shows another width: the heading matters.
+    let across = walker(2, 1..=40, (0.0, 5.0, 0.0), 0.0, |_| 1.0);
+    let along = walker_box(
+        &camera(),
+        &WalkerBoxConfig::default(),
+        (0.0, 5.0),
+        std::f64::consts::FRAC_PI_2,
+        1.8,
+    )
+    .expect("in front");
+    assert!((across[0].bbox.width - along.width).abs() > 0.1 * along.width);
+    Ok(())
+}
+
+/// A walker who walks and then stands keeps the direction of the walk; one never seen
+/// walking, a car, and a box at the frame's edge are left as they were.
+#[test]
+fn standing_walkers_keep_their_walk_and_others_are_left_alone() -> Result<()> {
+    let mut points = walker(1, 1..=20, (-3.0, 5.0, 1.4), 0.0, |_| 1.2);
+    // Frames 21–40 standing where the walk ended, boxes 20 % too wide.
+    let end = (-3.0 + 1.4 * 1.9, 5.0);
+    let (cam, cfg) = (camera(), WalkerBoxConfig::default());
+    let want = walker_box(&cam, &cfg, end, 0.0, 1.8).expect("in front");
+    for f in 21..=40 {
+        let b = BBox::from_centre(want.centre(), want.width * 1.2, want.height);
+        points.push(point(f, 1, ObjectClass::Pedestrian, b));
+    }
+    let still = walker(2, 1..=40, (2.0, 8.0, 0.0), 0.0, |_| 1.2);
+    let car: Vec<TrackPoint> = walker(3, 1..=40, (-3.0, 3.0, 1.4), 0.0, |_| 1.2)
+        .into_iter()
+        .map(|p| TrackPoint {
+            class: ObjectClass::Car,
+            ..p
+        })
+        .collect();
+    let edge: Vec<TrackPoint> = (1..=40)
+        .map(|f| {
+            let b = BBox {
+                left: 0.0,
+                top: 200.0,
+                width: 6.0 + 0.1 * f64::from(f),
+                height: 40.0,
+            };
+            point(f, 4, ObjectClass::Pedestrian, b)
+        })
+        .collect();
+    let all: Vec<TrackPoint> = [points, still.clone(), car.clone(), edge.clone()].concat();
+    let (out, _) = run(&all, 40)?;
+    let standing = &boxes(&out, 1)[30];
+    assert!(
+        (standing.width - want.width).abs() < 0.02 * want.width,
+        "{standing:?} {want:?}"
+    );
+    for (id, before) in [(2, &still), (3, &car), (4, &edge)] {
+        let after = boxes(&out, id);
+        assert_eq!(after.len(), before.len());
+        for (a, b) in after.iter().zip(before) {
+            assert_eq!(*a, b.bbox, "track {id}");
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn bad_settings_and_views_without_perspective_are_refused() -> Result<()> {
+    for (cfg, field) in [
+        (
+            WalkerBoxConfig {
+                height_m: 0.0,
+                ..Default::default()
+            },
+            "height_m",
+        ),
+        (
+            WalkerBoxConfig {
+                half_window_frames: 0,
+                ..Default::default()
+            },
+            "half_window_frames",
+        ),
+        (
+            WalkerBoxConfig {
+                min_speed_mps: f64::NAN,
+                ..Default::default()
+            },
+            "min_speed_mps",
+        ),
+    ] {
+        let err = WalkerBoxStage::new(cfg, &calibration(), 640, 480).unwrap_err();
+        assert!(err.to_string().contains(field), "{err}");
+    }
+    let nadir = Calibration::from_nadir(0.25, [0.0, 0.0], 0.0)?;
+    let err = WalkerBoxStage::new(WalkerBoxConfig::default(), &nadir, 640, 480).unwrap_err();
+    assert!(err.to_string().contains("no perspective"), "{err}");
+    Ok(())
+}
