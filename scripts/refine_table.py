@@ -24,12 +24,14 @@ from video_tracking_table import evaluate, print_means, run, sequence  # noqa: E
 DOTS = ["--confirm-hits", "32", "--extend-frames", "30", "--orient-walkers", "--smooth-robust",
         "--smooth-boxes", "12", "--smooth-vehicle-boxes", "5"]
 JUNCTION = ["--config", "configs/mrf-intersection.toml", "--coast-frames", "40"]
+# Walkers' boxes from a body model through the calibration (people seen from the side).
+WALKERS = ["--calibration", "{seq}/calibration.toml", "--walker-boxes"]
 # The refinement: vehicles' boxes from above (walkers are dots there, centred already),
 # everyone's from the side.
 VEHICLES = ["--refine-boxes"]
 ALL = ["--refine-boxes", "--refine-pedestrians"]
-# scene-view: (boxes file, detect flags ({seq}: the sequence), method, track flags,
-# refinement flags). Choice: no refinement on the oblique road and crossing since the
+# scene-view: (boxes file, detect flags ({seq}: the sequence), method, track flags (the
+# same), refinement flags). Choice: no refinement on the oblique road and crossing since the
 # learned detector's GPU stage, which boxes tighter (held-out seeds 4-6: 0.564 against 0.560
 # and 0.574 against 0.554; docs/EXPERIMENTS.md "With the GPU-trained detector").
 RECIPES = {
@@ -43,7 +45,11 @@ RECIPES = {
                      []),
     # Choice: --zoom-small 32 (held-out seeds 4-6: 0.711 against 0.695 at 16, 0.706 at 24
     # and at 48): walkers side by side at the kerb are told apart on the enlarged frame.
-    "intersection-oblique": ("det_z32.csv", ["--zoom-small", "32"], "mrf", JUNCTION, ALL),
+    # Choice: --walker-boxes on both oblique scenes with walkers (held-out seeds 4-6: crossing
+    # 0.592 -> 0.615, intersection 0.711 -> 0.715; docs/EXPERIMENTS.md "Walkers' boxes from a
+    # body model").
+    "intersection-oblique": ("det_z32.csv", ["--zoom-small", "32"], "mrf",
+                             [*JUNCTION, *WALKERS], ALL),
     "intersection-aerial": ("det_dots.csv", ["--flip-vertical", "--dots", "--calibration",
                                              "{seq}/calibration.toml"], "phd",
                             ["--config", "configs/phd-aerial.toml", *DOTS], VEHICLES),
@@ -52,7 +58,8 @@ RECIPES = {
                         ["--config", "configs/phd-aerial.toml", *DOTS], VEHICLES),
     # Choice: --min-score 0.5 with the GPU-stage model (held-out seeds 4-6: 0.592 against
     # 0.574 at the default 0.4, 0.561 at 0.3, 0.571 at 0.6).
-    "crossing-oblique": ("det_ms05.csv", ["--min-score", "0.5"], "mrf", JUNCTION, []),
+    "crossing-oblique": ("det_ms05.csv", ["--min-score", "0.5"], "mrf", [*JUNCTION, *WALKERS],
+                         []),
 }
 COLUMNS = ["MOG2 + norfair", "norfair", "norfair refined", "ours", "ours refined"]
 
@@ -90,7 +97,8 @@ def main():
                 row.append(evaluate(rt, seq, t)["HOTA"])
             for flags in ([], refine):
                 run([rt, "-q", "track", seq, "--method", method, "--detector", "file",
-                     "--detections", boxes, *extra, *flags, "--seed", str(seed), "-o", t])
+                     "--detections", boxes, *(f.replace("{seq}", seq) for f in extra), *flags,
+                     "--seed", str(seed), "-o", t])
                 row.append(evaluate(rt, seq, t)["HOTA"])
             means.setdefault(sv, []).append(row)
             cells = " | ".join(f"{v:.3f}" for v in row)

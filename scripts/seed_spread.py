@@ -41,7 +41,8 @@ def main():
         scores = []
         for seed in seeds:
             run([a.roadtrack, "-q", "track", a.seq, "--method", method, "--detector", "file",
-                 "--detections", boxes, *extra, "--seed", seed, "-o", tracks])
+                 "--detections", boxes, *(f.replace("{seq}", a.seq) for f in extra), "--seed",
+                 seed, "-o", tracks])
             scores.append(evaluate(a.roadtrack, a.seq, tracks))
         mean = {k: sum(s[k] for s in scores) / len(scores) for k in ("HOTA", "DetA", "AssA")}
         each = " ".join(f"{s['HOTA']:.4f}" for s in scores)
