@@ -184,6 +184,35 @@ fn a_box_nested_in_a_larger_box_of_its_group_is_dropped() {
     let mut half = cfg.clone();
     half.nested.vehicle_fraction = 0.5;
     assert_eq!(drop_nested(boxes.clone(), &half).len(), kept.len() - 1);
+    // A lorry kept only by its class's floor holds no box; one above the common floor does.
+    let floored = CenterNetConfig {
+        class_min_score: ClassMinScore {
+            lorry: Some(0.2),
+            ..ClassMinScore::default()
+        },
+        ..cfg.clone()
+    };
+    let low = |score| {
+        vec![
+            cand(100.0, 100.0, 40.0, 16.0, lorry, score),
+            cand(92.0, 100.0, 16.0, 12.0, car, 0.9),
+        ]
+    };
+    assert_eq!(
+        drop_nested(low(0.25), &floored).len(),
+        2,
+        "the floor's lorry"
+    );
+    assert_eq!(
+        drop_nested(low(0.45), &floored).len(),
+        1,
+        "a lorry above 0.4"
+    );
+    assert_eq!(
+        drop_nested(low(0.25), &cfg).len(),
+        1,
+        "no floor: the rule as before"
+    );
     // 0 turns each rule off.
     let off = CenterNetConfig {
         nested: roadtrack::detect::nested::NestedConfig::OFF,

@@ -74,6 +74,12 @@ impl Default for NestedConfig {
 // 0.815); a box is tested against every other box, dropped ones included, so the result
 // does not depend on the order. Boxes of equal area never drop each other.
 pub fn nested(boxes: &[(BBox, bool)], cfg: &NestedConfig) -> Vec<bool> {
+    nested_in(boxes, &vec![true; boxes.len()], cfg)
+}
+
+/// [`nested`] where only the boxes marked in `containers` may hold others (every box is
+/// still tested for lying inside one).
+pub fn nested_in(boxes: &[(BBox, bool)], containers: &[bool], cfg: &NestedConfig) -> Vec<bool> {
     boxes
         .iter()
         .map(|(b, ped)| {
@@ -85,8 +91,8 @@ pub fn nested(boxes: &[(BBox, bool)], cfg: &NestedConfig) -> Vec<bool> {
             let area = b.area();
             f > 0.0
                 && area > 0.0
-                && boxes.iter().any(|(k, kped)| {
-                    kped == ped && k.area() > area && b.intersection_area(k) / area >= f
+                && boxes.iter().zip(containers).any(|((k, kped), &holds)| {
+                    holds && kped == ped && k.area() > area && b.intersection_area(k) / area >= f
                 })
         })
         .collect()
