@@ -6,6 +6,19 @@ use common::{bin, stderr};
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::{Path, PathBuf};
 
+/// `dir/seq`: the simulator's oblique crossing, `frames` frames (seed 5).
+fn crossing(dir: &Path, frames: u32) -> PathBuf {
+    let seq = dir.join("seq");
+    let cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames,
+        ..Default::default()
+    };
+    roadtrack_sim::simulate(&cfg, 5, &seq, &mut |_, _| {}).expect("simulate");
+    seq
+}
+
 /// The truth's walkers (at least half visible) as detections of a detector that cannot
 /// tell which way a walker faces: every box 0.35 times as wide as it is high, centres and
 /// heights kept.
@@ -96,14 +109,7 @@ fn track(seq: &Path, dets: &Path, extra: &[&str], threads: &str, out: PathBuf) -
 #[test]
 fn walker_boxes_give_walkers_the_width_of_their_body() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let seq = dir.path().join("seq");
-    let cfg = SimConfig {
-        scene: SceneKind::Crossing,
-        view: ViewKind::Oblique,
-        frames: 40,
-        ..Default::default()
-    };
-    roadtrack_sim::simulate(&cfg, 5, &seq, &mut |_, _| {}).expect("simulate");
+    let seq = crossing(dir.path(), 40);
     let dets = guessed_walkers(&seq, dir.path().join("dets.csv"));
     let cal = seq.join("calibration.toml");
     let cal = cal.to_str().expect("utf-8");
@@ -132,14 +138,7 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
 #[test]
 fn walker_boxes_need_a_calibration_with_perspective() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let seq = dir.path().join("seq");
-    let cfg = SimConfig {
-        scene: SceneKind::Crossing,
-        view: ViewKind::Oblique,
-        frames: 5,
-        ..Default::default()
-    };
-    roadtrack_sim::simulate(&cfg, 5, &seq, &mut |_, _| {}).expect("simulate");
+    let seq = crossing(dir.path(), 5);
     let run = |extra: &[&str]| {
         bin()
             .args(["-q", "track"])
