@@ -243,18 +243,24 @@ impl WalkerBoxStage {
             })
             .collect();
         let k = i64::from(cfg.half_window_frames);
+        let frame_of = |j: usize| i64::from(point(&at[j]).frame);
         let mut heading: Vec<Option<f64>> = vec![None; at.len()];
-        for (j, a) in at.iter().enumerate() {
-            let frame = i64::from(point(a).frame);
+        // The points within k frames of point j: [lo, hi), moved along as j goes (frame order).
+        let (mut lo, mut hi) = (0, 0);
+        for (j, h) in heading.iter_mut().enumerate() {
+            let frame = frame_of(j);
+            while frame_of(lo) < frame - k {
+                lo += 1;
+            }
+            while hi < at.len() && frame_of(hi) <= frame + k {
+                hi += 1;
+            }
             let (mut t, mut xs, mut ys) = (Vec::new(), Vec::new(), Vec::new());
-            for (b, g) in at.iter().zip(&feet) {
-                let p = point(b);
-                if let Some((x, y)) = g
-                    && (i64::from(p.frame) - frame).abs() <= k
-                {
-                    t.push(p.time_s);
-                    xs.push(*x);
-                    ys.push(*y);
+            for i in lo..hi {
+                if let Some((x, y)) = feet[i] {
+                    t.push(point(&at[i]).time_s);
+                    xs.push(x);
+                    ys.push(y);
                 }
             }
             if t.len() < 3 {
@@ -263,7 +269,7 @@ impl WalkerBoxStage {
             if let (Some(vx), Some(vy)) = (slope(&t, &xs), slope(&t, &ys))
                 && vx.hypot(vy) >= cfg.min_speed_mps
             {
-                heading[j] = Some(vy.atan2(vx));
+                *h = Some(vy.atan2(vx));
             }
         }
         // Standing still: the last steps' direction, else the first steps' after.
