@@ -19,17 +19,25 @@ fn crossing(dir: &Path, frames: u32) -> PathBuf {
     seq
 }
 
+/// The rows of a MOT file (`gt.txt`, a tracks file) as numbers.
+fn rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .expect("read")
+        .lines()
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.trim().parse().expect("number"))
+                .collect()
+        })
+        .collect()
+}
+
 /// The truth's walkers (at least half visible) as detections of a detector that cannot
 /// tell which way a walker faces: every box 0.35 times as wide as it is high, centres and
 /// heights kept.
 fn guessed_walkers(seq: &Path, out: PathBuf) -> PathBuf {
-    let gt = std::fs::read_to_string(seq.join("gt/gt.txt")).expect("gt.txt");
     let mut csv = String::from("frame,x,y,w,h,class,score\n");
-    for line in gt.lines() {
-        let c: Vec<f64> = line
-            .split(',')
-            .map(|v| v.trim().parse().expect("number"))
-            .collect();
+    for c in rows(&seq.join("gt/gt.txt")) {
         if c[7] != 1.0 || c[8] < 0.5 {
             continue;
         }
@@ -48,18 +56,7 @@ fn guessed_walkers(seq: &Path, out: PathBuf) -> PathBuf {
 
 /// Mean |ln(w / w_true)| of the track boxes that overlap a walker's truth box by IoU ≥ 0.3.
 fn width_error(seq: &Path, tracks: &Path) -> f64 {
-    let read = |p: &Path| -> Vec<Vec<f64>> {
-        std::fs::read_to_string(p)
-            .expect("read")
-            .lines()
-            .map(|l| {
-                l.split(',')
-                    .map(|v| v.trim().parse().expect("number"))
-                    .collect()
-            })
-            .collect()
-    };
-    let (gt, tr) = (read(&seq.join("gt/gt.txt")), read(tracks));
+    let (gt, tr) = (rows(&seq.join("gt/gt.txt")), rows(tracks));
     let iou = |a: &[f64], b: &[f64]| {
         let ix = (a[2] + a[4]).min(b[2] + b[4]) - a[2].max(b[2]);
         let iy = (a[3] + a[5]).min(b[3] + b[5]) - a[3].max(b[3]);
