@@ -128,10 +128,33 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
         std::fs::read(&shaped).expect("read"),
         std::fs::read(&one).expect("read")
     );
+    // A broader body (--walker-config) gives broader boxes, their heights kept.
+    let broad = dir.path().join("broad.toml");
+    std::fs::write(&broad, "depth_m = 0.39\nwidth_m = 0.6\n").expect("write");
+    let broad = broad.to_str().expect("utf-8");
+    let on_broad = [
+        "--calibration",
+        cal,
+        "--walker-boxes",
+        "--walker-config",
+        broad,
+    ];
+    let wide = track(&seq, &dets, &on_broad, "2", dir.path().join("d.txt"));
+    let sums = |p: &Path| {
+        rows(p)
+            .iter()
+            .fold((0.0, 0.0), |(w, h), r| (w + r[4], h + r[5]))
+    };
+    let ((w0, h0), (w1, h1)) = (sums(&shaped), sums(&wide));
+    assert!(
+        w1 > 1.2 * w0 && (h1 - h0).abs() < 0.01 * h0,
+        "{w0} {h0} -> {w1} {h1}"
+    );
 }
 
 /// Without a calibration it is a usage error (exit 2); a nadir calibration, which has no
-/// perspective to recover a camera from, exits 1 naming the file.
+/// perspective to recover a camera from, exits 1 naming the file; so does a bad
+/// `--walker-config`, naming the field (and without `--walker-boxes` it is a usage error).
 #[test]
 fn walker_boxes_need_a_calibration_with_perspective() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -161,4 +184,20 @@ fn walker_boxes_need_a_calibration_with_perspective() {
     let e = stderr(&o);
     assert!(e.contains("nadir.toml") && e.contains("perspective"), "{e}");
     assert!(!dir.path().join("t.txt").exists(), "no output on error");
+    // --walker-config: a bad size is refused naming the file and the field.
+    let cal = seq.join("calibration.toml");
+    let bad = dir.path().join("walker.toml");
+    std::fs::write(&bad, "width_m = -0.4\n").expect("write");
+    let o = run(&[
+        "--calibration",
+        cal.to_str().expect("utf-8"),
+        "--walker-boxes",
+        "--walker-config",
+        bad.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("walker.toml") && e.contains("width_m"), "{e}");
+    let o = run(&["--walker-config", bad.to_str().expect("utf-8")]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }

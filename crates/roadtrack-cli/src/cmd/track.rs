@@ -99,6 +99,11 @@ pub struct Args {
     /// "Walkers' boxes from a body model").
     #[arg(long, requires = "calibration", conflicts_with = "as_published")]
     pub walker_boxes: bool,
+    /// With --walker-boxes: a TOML file with the body's sizes and the direction's settings
+    /// (a `WalkerBoxConfig`: depth_m, width_m, height_m, half_window_frames,
+    /// min_speed_mps; fields left out keep the simulator's walker).
+    #[arg(long, value_name = "F.toml", requires = "walker_boxes")]
+    pub walker_config: Option<PathBuf>,
     /// Random seed (MRF Gibbs sampler, particle filters).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -392,16 +397,20 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         && let Some(cal) = &calibration
     {
         // Choice: after the smoothing, whose centres it keeps and whose heights it fits.
-        let stage = WalkerBoxStage::new(WalkerBoxConfig::default(), cal, info.width, info.height)
-            .with_context(|| {
-            format!(
-                "--walker-boxes: {}",
-                args.calibration
-                    .as_deref()
-                    .unwrap_or(Path::new(""))
-                    .display()
-            )
-        })?;
+        let config: WalkerBoxConfig = match &args.walker_config {
+            Some(p) => roadtrack::config::load_toml(p).context("reading --walker-config")?,
+            None => WalkerBoxConfig::default(),
+        };
+        let stage =
+            WalkerBoxStage::new(config, cal, info.width, info.height).with_context(|| {
+                format!(
+                    "--walker-boxes: {}",
+                    args.calibration
+                        .as_deref()
+                        .unwrap_or(Path::new(""))
+                        .display()
+                )
+            })?;
         stages.push(Box::new(stage));
     }
     if let Some(cal) = &calibration {

@@ -107,6 +107,12 @@ impl WalkerBoxConfig {
 /// Fixed-point steps that put the body's centre on the ground under a box's bottom centre.
 const CENTRE_STEPS: usize = 2;
 
+impl crate::config::Validate for WalkerBoxConfig {
+    fn validate(&self) -> Result<()> {
+        WalkerBoxConfig::validate(self)
+    }
+}
+
 /// One block of the body, in the walker's frame (`x` forward, `y` left, `z` up): the
 /// bottom rectangle `[x0, x1] × [−y, y]` at `z0`, the top one at `z1`.
 struct Block {
