@@ -1,27 +1,11 @@
 //! End-to-end tests of `roadtrack track`.
 
 mod common;
-use common::{bin, stderr};
+use common::{bin, stderr, track_ok};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-
-/// Runs `roadtrack -q track SEQ ARGS… -o OUT` on `threads` threads; fails the test with its
-/// stderr when it fails. Returns OUT.
-fn track_ok(seq: &Path, args: &[&OsStr], threads: &str, out: PathBuf) -> PathBuf {
-    let o = bin()
-        .env("RAYON_NUM_THREADS", threads)
-        .args(["-q", "track"])
-        .arg(seq)
-        .args(args)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .expect("run");
-    assert!(o.status.success(), "{}", stderr(&o));
-    out
-}
 
 /// Fails the test unless the files `a` and `b` (the same run at two and at one thread)
 /// hold the same bytes.

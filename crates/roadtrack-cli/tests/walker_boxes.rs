@@ -1,9 +1,10 @@
 //! End-to-end tests of `roadtrack track --walker-boxes`.
 
 mod common;
-use common::{bin, stderr};
+use common::{bin, stderr, track_ok};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
 /// `dir/seq`: the simulator's oblique crossing, `frames` frames (seed 5).
@@ -78,26 +79,20 @@ fn width_error(seq: &Path, tracks: &Path) -> f64 {
     sum / f64::from(n)
 }
 
+/// `track_ok` with relaxation on the detections `dets`, then `extra`.
 fn track(seq: &Path, dets: &Path, extra: &[&str], threads: &str, out: PathBuf) -> PathBuf {
-    let o = bin()
-        .env("RAYON_NUM_THREADS", threads)
-        .args(["-q", "track"])
-        .arg(seq)
-        .args([
-            "--method",
-            "relaxation",
-            "--detector",
-            "file",
-            "--detections",
-        ])
-        .arg(dets)
-        .args(extra)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .expect("run");
-    assert!(o.status.success(), "{}", stderr(&o));
-    out
+    let mut args: Vec<&OsStr> = [
+        "--method",
+        "relaxation",
+        "--detector",
+        "file",
+        "--detections",
+    ]
+    .map(OsStr::new)
+    .to_vec();
+    args.push(dets.as_os_str());
+    args.extend(extra.iter().map(OsStr::new));
+    track_ok(seq, &args, threads, out)
 }
 
 /// The oblique crossing's walkers with badly guessed widths: with `--walker-boxes` the

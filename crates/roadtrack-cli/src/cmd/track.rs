@@ -28,7 +28,7 @@ use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
 };
 use roadtrack_viz::object_map::{BlockLabels, MapDump};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// The likelihood h(y | x) of pf and phd.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -393,24 +393,14 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         // ground positions and speeds below come from the smoothed boxes.
         stages.push(Box::new(SmoothStage::new(smooth)?));
     }
-    if args.walker_boxes
-        && let Some(cal) = &calibration
-    {
+    if let (true, Some(cal), Some(path)) = (args.walker_boxes, &calibration, &args.calibration) {
         // Choice: after the smoothing, whose centres it keeps and whose heights it fits.
         let config: WalkerBoxConfig = match &args.walker_config {
             Some(p) => roadtrack::config::load_toml(p).context("reading --walker-config")?,
             None => WalkerBoxConfig::default(),
         };
-        let stage =
-            WalkerBoxStage::new(config, cal, info.width, info.height).with_context(|| {
-                format!(
-                    "--walker-boxes: {}",
-                    args.calibration
-                        .as_deref()
-                        .unwrap_or(Path::new(""))
-                        .display()
-                )
-            })?;
+        let stage = WalkerBoxStage::new(config, cal, info.width, info.height)
+            .with_context(|| format!("--walker-boxes: {}", path.display()))?;
         stages.push(Box::new(stage));
     }
     if let Some(cal) = &calibration {

@@ -1,6 +1,7 @@
 //! Helpers every command-line test shares (`mod common;` in each test file).
 #![allow(dead_code)] // each test binary uses some of them
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -14,6 +15,22 @@ pub fn fixture(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../roadtrack/tests/fixtures")
         .join(rel)
+}
+
+/// Runs `roadtrack -q track SEQ ARGS… -o OUT` on `threads` threads; fails the test with its
+/// stderr when it fails. Returns OUT.
+pub fn track_ok<A: AsRef<OsStr>>(seq: &Path, args: &[A], threads: &str, out: PathBuf) -> PathBuf {
+    let o = bin()
+        .env("RAYON_NUM_THREADS", threads)
+        .args(["-q", "track"])
+        .arg(seq)
+        .args(args)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
 }
 
 /// Standard error, lossily decoded.

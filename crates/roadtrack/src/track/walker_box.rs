@@ -44,7 +44,7 @@ use super::pipeline::PointStage;
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, check_range};
 use crate::geometry::{BBox, Point};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -84,23 +84,27 @@ impl WalkerBoxConfig {
     /// # Errors
     /// [`Error::InvalidConfig`] naming the field.
     pub fn validate(&self) -> Result<()> {
-        let bad = |f: &str, m: &str| Err(Error::config("WalkerBoxConfig", f, m));
+        use std::ops::Bound::{Excluded, Included, Unbounded};
         for (name, v) in [
             ("depth_m", self.depth_m),
             ("width_m", self.width_m),
             ("height_m", self.height_m),
         ] {
-            if !(v.is_finite() && v > 0.0 && v <= 10.0) {
-                return bad(name, "must be in (0, 10] m");
-            }
+            check_range("WalkerBoxConfig", name, v, (Excluded(0.0), Included(10.0)))?;
         }
         if self.half_window_frames == 0 || self.half_window_frames > 1000 {
-            return bad("half_window_frames", "must be 1–1000");
+            return Err(Error::config(
+                "WalkerBoxConfig",
+                "half_window_frames",
+                "must be 1–1000",
+            ));
         }
-        if !(self.min_speed_mps.is_finite() && self.min_speed_mps > 0.0) {
-            return bad("min_speed_mps", "must be finite and > 0");
-        }
-        Ok(())
+        check_range(
+            "WalkerBoxConfig",
+            "min_speed_mps",
+            self.min_speed_mps,
+            (Excluded(0.0), Unbounded),
+        )
     }
 }
 
@@ -176,23 +180,6 @@ pub fn walker_box(
         width: hi.x - lo.x,
         height: hi.y - lo.y,
     })
-}
-
-/// Least-squares slope of `v` against `t`, or `None` for fewer than 2 distinct times.
-fn slope(t: &[f64], v: &[f64]) -> Option<f64> {
-    let n = t.len() as f64;
-    let (mt, mv) = (t.iter().sum::<f64>() / n, v.iter().sum::<f64>() / n);
-    let stt: f64 = t.iter().map(|t| (t - mt) * (t - mt)).sum();
-    if stt <= 0.0 {
-        return None;
-    }
-    Some(
-        t.iter()
-            .zip(v)
-            .map(|(t, v)| (t - mt) * (v - mv))
-            .sum::<f64>()
-            / stt,
-    )
 }
 
 /// The offline stage (see the module documentation).
@@ -272,9 +259,13 @@ impl WalkerBoxStage {
             if t.len() < 3 {
                 continue;
             }
-            if let (Some(vx), Some(vy)) = (slope(&t, &xs), slope(&t, &ys))
-                && vx.hypot(vy) >= cfg.min_speed_mps
-            {
+            // The box smoother's line, every weight 1 (a slope of 0 when all times are one).
+            let ones = vec![1.0; t.len()];
+            let (vx, vy) = (
+                super::smooth::weighted_line(&t, &xs, &ones).1,
+                super::smooth::weighted_line(&t, &ys, &ones).1,
+            );
+            if vx.hypot(vy) >= cfg.min_speed_mps {
                 *h = Some(vy.atan2(vx));
             }
         }
