@@ -29,16 +29,40 @@ use roadtrack::frame::Frame;
 use roadtrack::geometry::BBox;
 use roadtrack::likelihood::{DenseScorer, ScoreMap};
 
-/// The shipped model's path: `models/detector.onnx` of the current directory when it has
-/// one, else of the repository roadtrack was built from. Choice: the working directory
-/// first, so a clone's own model wins over the build tree's.
+/// The shipped model's path: `models/detector.onnx` of the current directory, or of the
+/// nearest of its parents that has one, else of the repository roadtrack was built from.
+// Choice: the working directory and its parents first, so a clone's own model wins over
+// the build tree's. Parents: tests run in their crate's folder, and a build folder shared
+// by two checkouts of the repository compiles in the other checkout's path (cargo keeps a
+// crate built in one checkout as fresh in the other), which may be gone.
 pub fn default_model_path() -> PathBuf {
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/detector.onnx");
+    let here = std::env::current_dir().unwrap_or_default();
+    model_path_from(&here, &built)
+}
+
+/// [`default_model_path`] from the folder `here` and the build tree's model `built`: the
+/// relative `models/detector.onnx` when `here` holds it, `models/detector.onnx` of the
+/// nearest parent that does, `built` when it is a file; else the relative path, for the
+/// caller's error to name.
+pub(crate) fn model_path_from(here: &Path, built: &Path) -> PathBuf {
     let local = PathBuf::from("models/detector.onnx");
-    if local.is_file() {
+    if here.join(&local).is_file() {
         return local;
     }
-    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/detector.onnx");
-    if built.is_file() { built } else { local }
+    if let Some(p) = here
+        .ancestors()
+        .skip(1)
+        .map(|d| d.join(&local))
+        .find(|p| p.is_file())
+    {
+        return p;
+    }
+    if built.is_file() {
+        built.to_path_buf()
+    } else {
+        local
+    }
 }
 
 /// The network outputs of one frame, cropped to the frame's cells.

@@ -893,3 +893,30 @@ fn class_min_scores_parse_by_name_and_are_checked() {
     assert_eq!(toml.class_min_score.lorry, Some(0.2));
     assert!(toml::from_str::<CenterNetConfig>("[class_min_score]\nvan = 0.2\n").is_err());
 }
+
+/// The shipped model is found from a crate's folder (where tests run) in the repository's
+/// `models/`, whatever path the build compiled in; the working directory's own wins.
+#[test]
+fn the_default_model_is_found_from_the_folder_or_its_parents() -> Result<()> {
+    use super::detector::model_path_from;
+    let root = tempfile::tempdir().map_err(|e| Error::io("tempdir", e))?;
+    let deep = root.path().join("crates/roadtrack-cli");
+    std::fs::create_dir_all(&deep).map_err(|e| Error::io(&deep, e))?;
+    let gone = root.path().join("elsewhere/models/detector.onnx");
+    let rel = PathBuf::from("models/detector.onnx");
+    // Nothing anywhere: the relative path, for the error to name.
+    assert_eq!(model_path_from(&deep, &gone), rel);
+    // The build tree's model when neither the folder nor a parent has one.
+    let built = root.path().join("built.onnx");
+    std::fs::write(&built, b"x").map_err(|e| Error::io(&built, e))?;
+    assert_eq!(model_path_from(&deep, &built), built);
+    // A parent's model wins over the build tree's.
+    std::fs::create_dir_all(root.path().join("models")).map_err(|e| Error::io("models", e))?;
+    let repo = root.path().join("models/detector.onnx");
+    std::fs::write(&repo, b"x").map_err(|e| Error::io(&repo, e))?;
+    assert_eq!(model_path_from(&deep, &built), repo);
+    assert_eq!(model_path_from(&deep, &gone), repo);
+    // The folder's own, as the relative path.
+    assert_eq!(model_path_from(root.path(), &built), rel);
+    Ok(())
+}
