@@ -23,6 +23,7 @@ use roadtrack::track::pipeline::{GeoJsonSink, MotSink, TrajectoriesSink};
 use roadtrack::track::relaxation::RelaxationConfig;
 use roadtrack::track::relaxation::tracker::RelaxationTrackerConfig;
 use roadtrack::track::smooth::SmoothStage;
+use roadtrack::track::vehicle_box::{VehicleBoxConfig, VehicleBoxStage};
 use roadtrack::track::walker_box::{WalkerBoxConfig, WalkerBoxStage};
 use roadtrack::track::{
     FramePoints, Method, MethodConfig, Pipeline, PointSink, PointStage, Tracker,
@@ -104,6 +105,18 @@ pub struct Args {
     /// min_speed_mps; fields left out keep the simulator's walker).
     #[arg(long, value_name = "F.toml", requires = "walker_boxes")]
     pub walker_config: Option<PathBuf>,
+    /// Cameras that look along a road: box each vehicle from its path on the ground,
+    /// smoothed over the whole track from the detections it was given, and a vehicle model
+    /// of its class seen through the camera recovered from the calibration (needs
+    /// --calibration with perspective; docs/TRACKING.md "Vehicles' boxes from the ground").
+    #[arg(long, requires = "calibration", conflicts_with = "as_published")]
+    pub vehicle_boxes: bool,
+    /// With --vehicle-boxes: a TOML file with the vehicles' sizes and the smoother's
+    /// settings (a `VehicleBoxConfig`: car_m, truck_m, bus_m, motorcycle_m, bicycle_m,
+    /// accel_noise, noise_px, noise_per_px, min_iou, outlier_sigmas, passes, min_speed_mps;
+    /// fields left out keep their defaults).
+    #[arg(long, value_name = "F.toml", requires = "vehicle_boxes")]
+    pub vehicle_config: Option<PathBuf>,
     /// Random seed (MRF Gibbs sampler, particle filters).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -401,6 +414,17 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         };
         let stage = WalkerBoxStage::new(config, cal, info.width, info.height)
             .with_context(|| format!("--walker-boxes: {}", path.display()))?;
+        stages.push(Box::new(stage));
+    }
+    if let (true, Some(cal), Some(path)) = (args.vehicle_boxes, &calibration, &args.calibration) {
+        // Choice: after the smoothing, like the walkers' boxes: the stage matches the
+        // tracks' final boxes to the detections and redraws them whole.
+        let config: VehicleBoxConfig = match &args.vehicle_config {
+            Some(p) => roadtrack::config::load_toml(p).context("reading --vehicle-config")?,
+            None => VehicleBoxConfig::default(),
+        };
+        let stage = VehicleBoxStage::new(config, cal, info.width, info.height)
+            .with_context(|| format!("--vehicle-boxes: {}", path.display()))?;
         stages.push(Box::new(stage));
     }
     if let Some(cal) = &calibration {
