@@ -43,7 +43,7 @@
 //! (seed 1, the tracks' own boxes measured) the model's centres alone gave 0.540, its sizes
 //! alone 0.554, both 0.564, from 0.533.
 //! Choice: the detections are measured, not the tracks' boxes (the tracker's boxes are
-//! smoothed and carried between detections already): 0.597 against 0.567 on seed 1.
+//! smoothed and carried between detections already): 0.595 against 0.567 on seed 1.
 //! Choice: `min_iou` 0.7 and the outlier test at 2 noise units: a detection that the
 //! tracker's box does not agree with is a neighbour's or a part (held-out seeds 4–6, with
 //! one acceleration noise of 0.01: `min_iou` 0.5 / 0.6 / 0.7 0.682 / 0.687 / 0.689; at
