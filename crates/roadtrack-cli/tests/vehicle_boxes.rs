@@ -1,10 +1,9 @@
 //! End-to-end tests of `roadtrack track --vehicle-boxes`.
 
 mod common;
-use common::{bin, stderr, track_ok};
+use common::{bin, mot_iou, mot_rows, stderr, track_relaxation};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
-use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
 /// `dir/seq`: the simulator's oblique road, `frames` frames (seed 3).
@@ -20,24 +19,11 @@ fn road(dir: &Path, frames: u32) -> PathBuf {
     seq
 }
 
-/// The rows of a MOT file (`gt.txt`, a tracks file) as numbers.
-fn rows(path: &Path) -> Vec<Vec<f64>> {
-    std::fs::read_to_string(path)
-        .expect("read")
-        .lines()
-        .map(|l| {
-            l.split(',')
-                .map(|v| v.trim().parse().expect("number"))
-                .collect()
-        })
-        .collect()
-}
-
 /// The truth's cars (at least half visible, inside the frame) as a detector with far boxes'
 /// errors would box them: every box 10 % too wide, its centre off by up to 0.6 px.
 fn noisy_cars(seq: &Path, out: PathBuf) -> PathBuf {
     let mut csv = String::from("frame,x,y,w,h,class,score\n");
-    for (k, c) in rows(&seq.join("gt/gt.txt")).iter().enumerate() {
+    for (k, c) in mot_rows(&seq.join("gt/gt.txt")).iter().enumerate() {
         let (x, y, w, h) = (c[2], c[3], c[4], c[5]);
         if c[7] != 3.0 || c[8] < 0.5 || x < 1.0 || y < 1.0 || x + w > 639.0 || y + h > 479.0 {
             continue;
@@ -58,13 +44,8 @@ fn noisy_cars(seq: &Path, out: PathBuf) -> PathBuf {
 /// Mean IoU of each car's truth box (at least half visible) with the track box that
 /// overlaps it most, over the pairs at IoU ≥ 0.3.
 fn mean_iou(seq: &Path, tracks: &Path) -> f64 {
-    let (gt, tr) = (rows(&seq.join("gt/gt.txt")), rows(tracks));
-    let iou = |a: &[f64], b: &[f64]| {
-        let ix = (a[2] + a[4]).min(b[2] + b[4]) - a[2].max(b[2]);
-        let iy = (a[3] + a[5]).min(b[3] + b[5]) - a[3].max(b[3]);
-        let i = ix.max(0.0) * iy.max(0.0);
-        i / (a[4] * a[5] + b[4] * b[5] - i)
-    };
+    let (gt, tr) = (mot_rows(&seq.join("gt/gt.txt")), mot_rows(tracks));
+    let iou = mot_iou;
     let (mut sum, mut n) = (0.0, 0);
     for g in gt.iter().filter(|g| g[7] == 3.0 && g[8] >= 0.5) {
         let best = tr
@@ -81,22 +62,6 @@ fn mean_iou(seq: &Path, tracks: &Path) -> f64 {
     sum / f64::from(n)
 }
 
-/// `track_ok` with relaxation on the detections `dets`, then `extra`.
-fn track(seq: &Path, dets: &Path, extra: &[&str], threads: &str, out: PathBuf) -> PathBuf {
-    let mut args: Vec<&OsStr> = [
-        "--method",
-        "relaxation",
-        "--detector",
-        "file",
-        "--detections",
-    ]
-    .map(OsStr::new)
-    .to_vec();
-    args.push(dets.as_os_str());
-    args.extend(extra.iter().map(OsStr::new));
-    track_ok(seq, &args, threads, out)
-}
-
 /// The oblique road's cars with noisy boxes: with `--vehicle-boxes` the tracks' boxes come
 /// close to the truth's (each car's path smoothed on the ground, the car model seen through
 /// the calibration), the same output at one and two threads; a longer car
@@ -108,7 +73,7 @@ fn vehicle_boxes_bring_noisy_car_boxes_to_the_truth() {
     let dets = noisy_cars(&seq, dir.path().join("dets.csv"));
     let cal = seq.join("calibration.toml");
     let cal = cal.to_str().expect("utf-8");
-    let plain = track(
+    let plain = track_relaxation(
         &seq,
         &dets,
         &["--calibration", cal],
@@ -116,12 +81,12 @@ fn vehicle_boxes_bring_noisy_car_boxes_to_the_truth() {
         dir.path().join("a.txt"),
     );
     let on = ["--calibration", cal, "--vehicle-boxes"];
-    let drawn = track(&seq, &dets, &on, "2", dir.path().join("b.txt"));
+    let drawn = track_relaxation(&seq, &dets, &on, "2", dir.path().join("b.txt"));
     let (before, after) = (mean_iou(&seq, &plain), mean_iou(&seq, &drawn));
     // Measured: 0.792 -> 0.889 (what is left: each car's own size against the class's mean,
     // and relaxation's own misses).
     assert!(after > before + 0.05, "{before} -> {after}");
-    let one = track(&seq, &dets, &on, "1", dir.path().join("c.txt"));
+    let one = track_relaxation(&seq, &dets, &on, "1", dir.path().join("c.txt"));
     assert_eq!(
         std::fs::read(&drawn).expect("read"),
         std::fs::read(&one).expect("read")
@@ -136,8 +101,8 @@ fn vehicle_boxes_bring_noisy_car_boxes_to_the_truth() {
         "--vehicle-config",
         long,
     ];
-    let longer = track(&seq, &dets, &on_long, "2", dir.path().join("d.txt"));
-    let area = |p: &Path| rows(p).iter().map(|r| r[4] * r[5]).sum::<f64>();
+    let longer = track_relaxation(&seq, &dets, &on_long, "2", dir.path().join("d.txt"));
+    let area = |p: &Path| mot_rows(p).iter().map(|r| r[4] * r[5]).sum::<f64>();
     let (a0, a1) = (area(&drawn), area(&longer));
     assert!(a1 > 1.05 * a0, "{a0} -> {a1}");
 }

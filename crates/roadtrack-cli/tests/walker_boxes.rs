@@ -1,10 +1,9 @@
 //! End-to-end tests of `roadtrack track --walker-boxes`.
 
 mod common;
-use common::{bin, stderr, track_ok};
+use common::{bin, mot_iou, mot_rows, stderr, track_relaxation};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
-use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
 /// `dir/seq`: the simulator's oblique crossing, `frames` frames (seed 5).
@@ -20,25 +19,12 @@ fn crossing(dir: &Path, frames: u32) -> PathBuf {
     seq
 }
 
-/// The rows of a MOT file (`gt.txt`, a tracks file) as numbers.
-fn rows(path: &Path) -> Vec<Vec<f64>> {
-    std::fs::read_to_string(path)
-        .expect("read")
-        .lines()
-        .map(|l| {
-            l.split(',')
-                .map(|v| v.trim().parse().expect("number"))
-                .collect()
-        })
-        .collect()
-}
-
 /// The truth's walkers (at least half visible) as detections of a detector that cannot
 /// tell which way a walker faces: every box 0.35 times as wide as it is high, centres and
 /// heights kept.
 fn guessed_walkers(seq: &Path, out: PathBuf) -> PathBuf {
     let mut csv = String::from("frame,x,y,w,h,class,score\n");
-    for c in rows(&seq.join("gt/gt.txt")) {
+    for c in mot_rows(&seq.join("gt/gt.txt")) {
         if c[7] != 1.0 || c[8] < 0.5 {
             continue;
         }
@@ -57,13 +43,8 @@ fn guessed_walkers(seq: &Path, out: PathBuf) -> PathBuf {
 
 /// Mean |ln(w / w_true)| of the track boxes that overlap a walker's truth box by IoU ≥ 0.3.
 fn width_error(seq: &Path, tracks: &Path) -> f64 {
-    let (gt, tr) = (rows(&seq.join("gt/gt.txt")), rows(tracks));
-    let iou = |a: &[f64], b: &[f64]| {
-        let ix = (a[2] + a[4]).min(b[2] + b[4]) - a[2].max(b[2]);
-        let iy = (a[3] + a[5]).min(b[3] + b[5]) - a[3].max(b[3]);
-        let i = ix.max(0.0) * iy.max(0.0);
-        i / (a[4] * a[5] + b[4] * b[5] - i)
-    };
+    let (gt, tr) = (mot_rows(&seq.join("gt/gt.txt")), mot_rows(tracks));
+    let iou = mot_iou;
     let (mut sum, mut n) = (0.0, 0);
     for g in gt.iter().filter(|g| g[7] == 1.0 && g[8] >= 0.5) {
         let best = tr
@@ -79,22 +60,6 @@ fn width_error(seq: &Path, tracks: &Path) -> f64 {
     sum / f64::from(n)
 }
 
-/// `track_ok` with relaxation on the detections `dets`, then `extra`.
-fn track(seq: &Path, dets: &Path, extra: &[&str], threads: &str, out: PathBuf) -> PathBuf {
-    let mut args: Vec<&OsStr> = [
-        "--method",
-        "relaxation",
-        "--detector",
-        "file",
-        "--detections",
-    ]
-    .map(OsStr::new)
-    .to_vec();
-    args.push(dets.as_os_str());
-    args.extend(extra.iter().map(OsStr::new));
-    track_ok(seq, &args, threads, out)
-}
-
 /// The oblique crossing's walkers with badly guessed widths: with `--walker-boxes` the
 /// tracks' widths come back to the truth's (the body model seen through the calibration,
 /// turned to each walk), the same output at one and two threads.
@@ -105,7 +70,7 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
     let dets = guessed_walkers(&seq, dir.path().join("dets.csv"));
     let cal = seq.join("calibration.toml");
     let cal = cal.to_str().expect("utf-8");
-    let plain = track(
+    let plain = track_relaxation(
         &seq,
         &dets,
         &["--calibration", cal],
@@ -113,12 +78,12 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
         dir.path().join("a.txt"),
     );
     let on = ["--calibration", cal, "--walker-boxes"];
-    let shaped = track(&seq, &dets, &on, "2", dir.path().join("b.txt"));
+    let shaped = track_relaxation(&seq, &dets, &on, "2", dir.path().join("b.txt"));
     let (before, after) = (width_error(&seq, &plain), width_error(&seq, &shaped));
     // Measured: 0.146 -> 0.048 (what is left: each walker's own size, and standing walkers
     // turned from the way they walked).
     assert!(after < 0.4 * before, "{before} -> {after}");
-    let one = track(&seq, &dets, &on, "1", dir.path().join("c.txt"));
+    let one = track_relaxation(&seq, &dets, &on, "1", dir.path().join("c.txt"));
     assert_eq!(
         std::fs::read(&shaped).expect("read"),
         std::fs::read(&one).expect("read")
@@ -134,9 +99,9 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
         "--walker-config",
         broad,
     ];
-    let wide = track(&seq, &dets, &on_broad, "2", dir.path().join("d.txt"));
+    let wide = track_relaxation(&seq, &dets, &on_broad, "2", dir.path().join("d.txt"));
     let sums = |p: &Path| {
-        rows(p)
+        mot_rows(p)
             .iter()
             .fold((0.0, 0.0), |(w, h), r| (w + r[4], h + r[5]))
     };

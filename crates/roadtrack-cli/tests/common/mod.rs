@@ -33,6 +33,49 @@ pub fn track_ok<A: AsRef<OsStr>>(seq: &Path, args: &[A], threads: &str, out: Pat
     out
 }
 
+/// `track_ok` with relaxation on the detections CSV `dets`, then `extra`.
+pub fn track_relaxation(
+    seq: &Path,
+    dets: &Path,
+    extra: &[&str],
+    threads: &str,
+    out: PathBuf,
+) -> PathBuf {
+    let mut args: Vec<&OsStr> = [
+        "--method",
+        "relaxation",
+        "--detector",
+        "file",
+        "--detections",
+    ]
+    .map(OsStr::new)
+    .to_vec();
+    args.push(dets.as_os_str());
+    args.extend(extra.iter().map(OsStr::new));
+    track_ok(seq, &args, threads, out)
+}
+
+/// The rows of a MOT file (`gt.txt`, a tracks file) as numbers.
+pub fn mot_rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .expect("read")
+        .lines()
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.trim().parse().expect("number"))
+                .collect()
+        })
+        .collect()
+}
+
+/// IoU of two MOT rows' boxes (columns 2–5: left, top, width, height).
+pub fn mot_iou(a: &[f64], b: &[f64]) -> f64 {
+    let ix = (a[2] + a[4]).min(b[2] + b[4]) - a[2].max(b[2]);
+    let iy = (a[3] + a[5]).min(b[3] + b[5]) - a[3].max(b[3]);
+    let i = ix.max(0.0) * iy.max(0.0);
+    i / (a[4] * a[5] + b[4] * b[5] - i)
+}
+
 /// Standard error, lossily decoded.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -21,6 +21,7 @@ pub mod pipeline;
 pub mod relaxation;
 pub mod replay;
 pub mod smooth;
+mod solid;
 pub mod vehicle_box;
 pub mod walker_box;
 

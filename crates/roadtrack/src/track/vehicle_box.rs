@@ -63,6 +63,7 @@ mod rts;
 
 use super::FramePoints;
 use super::pipeline::PointStage;
+use super::solid::{Block, image_box};
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
@@ -227,20 +228,6 @@ pub enum Shape {
     TwoWheeler,
 }
 
-/// One block of a vehicle, in its frame (`x` forward, `y` left, `z` up): the bottom
-/// rectangle `[x0, x1] × [−y, y]` at `z0`, the top one at `z1`.
-struct Block {
-    bottom: [f64; 3],
-    top: [f64; 3],
-    z: [f64; 2],
-}
-
-impl Block {
-    fn new(bottom: [f64; 3], top: [f64; 3], z: [f64; 2]) -> Self {
-        Self { bottom, top, z }
-    }
-}
-
 /// The blocks of a vehicle of `shape`, `[length, width, height]` m: the simulator's
 /// (crates/roadtrack-sim/src/render.rs).
 fn blocks(shape: Shape, [l, w, h]: [f64; 3]) -> Vec<Block> {
@@ -326,28 +313,7 @@ pub fn vehicle_box(
     (x, y): (f64, f64),
     heading: f64,
 ) -> Option<BBox> {
-    let (s, c) = heading.sin_cos();
-    let (mut lo, mut hi) = (
-        Point::new(f64::INFINITY, f64::INFINITY),
-        Point::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
-    );
-    for b in blocks(shape, dims) {
-        for ([x0, x1, hw], z) in [(b.bottom, b.z[0]), (b.top, b.z[1])] {
-            for u in [x0, x1] {
-                for v in [-hw, hw] {
-                    let p = camera.project(x + u * c - v * s, y + u * s + v * c, z)?;
-                    lo = Point::new(lo.x.min(p.x), lo.y.min(p.y));
-                    hi = Point::new(hi.x.max(p.x), hi.y.max(p.y));
-                }
-            }
-        }
-    }
-    Some(BBox {
-        left: lo.x,
-        top: lo.y,
-        width: hi.x - lo.x,
-        height: hi.y - lo.y,
-    })
+    image_box(camera, &blocks(shape, dims), (x, y), heading)
 }
 
 /// Newton steps that put a measurement on the ground under the model's box centre.

@@ -41,6 +41,7 @@
 
 use super::FramePoints;
 use super::pipeline::PointStage;
+use super::solid::{Block, image_box};
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
@@ -117,14 +118,6 @@ impl crate::config::Validate for WalkerBoxConfig {
     }
 }
 
-/// One block of the body, in the walker's frame (`x` forward, `y` left, `z` up): the
-/// bottom rectangle `[x0, x1] × [−y, y]` at `z0`, the top one at `z1`.
-struct Block {
-    bottom: [f64; 3],
-    top: [f64; 3],
-    z: [f64; 2],
-}
-
 /// The body of [`WalkerBoxConfig`]'s size and `height` (see the module documentation).
 fn body(config: &WalkerBoxConfig, height: f64) -> [Block; 3] {
     let (d, w) = (config.depth_m / 2.0, config.width_m / 2.0);
@@ -158,28 +151,7 @@ pub fn walker_box(
     heading: f64,
     height: f64,
 ) -> Option<BBox> {
-    let (s, c) = heading.sin_cos();
-    let (mut lo, mut hi) = (
-        Point::new(f64::INFINITY, f64::INFINITY),
-        Point::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
-    );
-    for b in body(config, height) {
-        for ([x0, x1, hw], z) in [(b.bottom, b.z[0]), (b.top, b.z[1])] {
-            for u in [x0, x1] {
-                for v in [-hw, hw] {
-                    let p = camera.project(x + u * c - v * s, y + u * s + v * c, z)?;
-                    lo = Point::new(lo.x.min(p.x), lo.y.min(p.y));
-                    hi = Point::new(hi.x.max(p.x), hi.y.max(p.y));
-                }
-            }
-        }
-    }
-    Some(BBox {
-        left: lo.x,
-        top: lo.y,
-        width: hi.x - lo.x,
-        height: hi.y - lo.y,
-    })
+    image_box(camera, &body(config, height), (x, y), heading)
 }
 
 /// The offline stage (see the module documentation).

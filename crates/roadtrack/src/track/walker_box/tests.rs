@@ -6,24 +6,7 @@ use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};
 /// A camera 12 m up at (0, −30) looking along `+y`, 0.5 rad down, f = 512 px, its
 /// principal point at the centre of 640 × 480 px: the ground homography of that view.
 fn calibration() -> Calibration {
-    let (s, c) = 0.5_f64.sin_cos();
-    let (f, cu, cv) = (512.0, 320.0, 240.0);
-    let rows = [[1.0, 0.0, 0.0], [0.0, -s, -c], [0.0, c, -s]];
-    let centre = [0.0, -30.0, 12.0];
-    let t: Vec<f64> = rows
-        .iter()
-        .map(|r| -(r[0] * centre[0] + r[1] * centre[1] + r[2] * centre[2]))
-        .collect();
-    let k = [[f, 0.0, cu], [0.0, f, cv], [0.0, 0.0, 1.0]];
-    let mut h = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for (j, col) in [0, 1, 3].into_iter().enumerate() {
-            h[i][j] = (0..3)
-                .map(|l| k[i][l] * if col < 3 { rows[l][col] } else { t[l] })
-                .sum();
-        }
-    }
-    Calibration::from_homography(h).expect("a valid homography")
+    crate::track::solid::looking_along_y(12.0, 30.0, 0.5)
 }
 
 fn camera() -> Pinhole {
