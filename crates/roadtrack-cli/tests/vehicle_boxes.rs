@@ -1,7 +1,7 @@
 //! End-to-end tests of `roadtrack track --vehicle-boxes`.
 
 mod common;
-use common::{bin, mot_iou, mot_rows, stderr, track_relaxation};
+use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::{Path, PathBuf};
@@ -107,57 +107,20 @@ fn vehicle_boxes_bring_noisy_car_boxes_to_the_truth() {
     assert!(a1 > 1.05 * a0, "{a0} -> {a1}");
 }
 
-/// Without a calibration it is a usage error (exit 2); a nadir calibration, which has no
-/// perspective to recover a camera from, exits 1 naming the file; so does a bad
-/// `--vehicle-config`, naming the field (and without `--vehicle-boxes` it is a usage error).
+/// Without a perspective calibration, or with bad settings, `--vehicle-boxes` is refused
+/// (`common::box_stage_needs_perspective`).
 #[test]
 fn vehicle_boxes_need_a_calibration_with_perspective() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = road(dir.path(), 5);
-    let run = |extra: &[&str]| {
-        bin()
-            .args(["-q", "track"])
-            .arg(&seq)
-            .args(["--method", "relaxation", "--detector", "file"])
-            .args(extra)
-            .arg("-o")
-            .arg(dir.path().join("t.txt"))
-            .output()
-            .expect("run")
-    };
-    let o = run(&["--vehicle-boxes"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--calibration"), "{}", stderr(&o));
-    let nadir = dir.path().join("nadir.toml");
-    std::fs::write(&nadir, "metres_per_pixel = 0.25\norigin_m = [0.0, 0.0]\n").expect("write");
-    let o = run(&[
+    box_stage_needs_perspective(
+        &seq,
         "--vehicle-boxes",
-        "--calibration",
-        nadir.to_str().expect("utf-8"),
-    ]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let e = stderr(&o);
-    assert!(e.contains("nadir.toml") && e.contains("perspective"), "{e}");
-    assert!(!dir.path().join("t.txt").exists(), "no output on error");
-    let cal = seq.join("calibration.toml");
-    for (text, field) in [
-        ("min_iou = 2.0\n", "min_iou"),
-        ("accel_noise = []\n", "accel_noise"),
-        ("truck_m = [9.0, 0.0, 3.3]\n", "truck_m"),
-    ] {
-        let bad = dir.path().join("vehicle.toml");
-        std::fs::write(&bad, text).expect("write");
-        let o = run(&[
-            "--calibration",
-            cal.to_str().expect("utf-8"),
-            "--vehicle-boxes",
-            "--vehicle-config",
-            bad.to_str().expect("utf-8"),
-        ]);
-        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-        let e = stderr(&o);
-        assert!(e.contains("vehicle.toml") && e.contains(field), "{e}");
-    }
-    let o = run(&["--vehicle-config", "x.toml"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        "--vehicle-config",
+        &[
+            ("min_iou = 2.0\n", "min_iou"),
+            ("accel_noise = []\n", "accel_noise"),
+            ("truck_m = [9.0, 0.0, 3.3]\n", "truck_m"),
+        ],
+    );
 }

@@ -1,7 +1,7 @@
 //! End-to-end tests of `roadtrack track --walker-boxes`.
 
 mod common;
-use common::{bin, mot_iou, mot_rows, stderr, track_relaxation};
+use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::{Path, PathBuf};
@@ -112,52 +112,16 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
     );
 }
 
-/// Without a calibration it is a usage error (exit 2); a nadir calibration, which has no
-/// perspective to recover a camera from, exits 1 naming the file; so does a bad
-/// `--walker-config`, naming the field (and without `--walker-boxes` it is a usage error).
+/// Without a perspective calibration, or with bad settings, `--walker-boxes` is refused
+/// (`common::box_stage_needs_perspective`).
 #[test]
 fn walker_boxes_need_a_calibration_with_perspective() {
     let dir = tempfile::tempdir().expect("tempdir");
     let seq = crossing(dir.path(), 5);
-    let run = |extra: &[&str]| {
-        bin()
-            .args(["-q", "track"])
-            .arg(&seq)
-            .args(["--method", "relaxation", "--detector", "file"])
-            .args(extra)
-            .arg("-o")
-            .arg(dir.path().join("t.txt"))
-            .output()
-            .expect("run")
-    };
-    let o = run(&["--walker-boxes"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--calibration"), "{}", stderr(&o));
-    let nadir = dir.path().join("nadir.toml");
-    std::fs::write(&nadir, "metres_per_pixel = 0.25\norigin_m = [0.0, 0.0]\n").expect("write");
-    let o = run(&[
-        "--walker-boxes",
-        "--calibration",
-        nadir.to_str().expect("utf-8"),
-    ]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let e = stderr(&o);
-    assert!(e.contains("nadir.toml") && e.contains("perspective"), "{e}");
-    assert!(!dir.path().join("t.txt").exists(), "no output on error");
-    // --walker-config: a bad size is refused naming the file and the field.
-    let cal = seq.join("calibration.toml");
-    let bad = dir.path().join("walker.toml");
-    std::fs::write(&bad, "width_m = -0.4\n").expect("write");
-    let o = run(&[
-        "--calibration",
-        cal.to_str().expect("utf-8"),
+    box_stage_needs_perspective(
+        &seq,
         "--walker-boxes",
         "--walker-config",
-        bad.to_str().expect("utf-8"),
-    ]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    let e = stderr(&o);
-    assert!(e.contains("walker.toml") && e.contains("width_m"), "{e}");
-    let o = run(&["--walker-config", bad.to_str().expect("utf-8")]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        &[("width_m = -0.4\n", "width_m")],
+    );
 }

@@ -76,6 +76,60 @@ pub fn mot_iou(a: &[f64], b: &[f64]) -> f64 {
     i / (a[4] * a[5] + b[4] * b[5] - i)
 }
 
+/// A box stage of `track` (`--walker-boxes`, `--vehicle-boxes`: `flag`, its settings file
+/// `config_flag`) on sequence `seq`: without a calibration it is a usage error (exit 2); a
+/// nadir calibration, which has no perspective to recover a camera from, exits 1 naming the
+/// file and writes nothing; each settings file of `bad` (its text, the field it gets wrong)
+/// exits 1 naming the file and the field; the settings flag without the stage's is a usage
+/// error.
+pub fn box_stage_needs_perspective(
+    seq: &Path,
+    flag: &str,
+    config_flag: &str,
+    bad: &[(&str, &str)],
+) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("t.txt");
+    let run = |extra: &[&str]| {
+        bin()
+            .args(["-q", "track"])
+            .arg(seq)
+            .args(["--method", "relaxation", "--detector", "file"])
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("run")
+    };
+    let o = run(&[flag]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--calibration"), "{}", stderr(&o));
+    let nadir = dir.path().join("nadir.toml");
+    std::fs::write(&nadir, "metres_per_pixel = 0.25\norigin_m = [0.0, 0.0]\n").expect("write");
+    let o = run(&[flag, "--calibration", nadir.to_str().expect("utf-8")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("nadir.toml") && e.contains("perspective"), "{e}");
+    assert!(!out.exists(), "no output on error");
+    let cal = seq.join("calibration.toml");
+    let file = dir.path().join("settings.toml");
+    for (text, field) in bad {
+        std::fs::write(&file, text).expect("write");
+        let o = run(&[
+            "--calibration",
+            cal.to_str().expect("utf-8"),
+            flag,
+            config_flag,
+            file.to_str().expect("utf-8"),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains("settings.toml") && e.contains(field), "{e}");
+    }
+    let o = run(&[config_flag, file.to_str().expect("utf-8")]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
 /// Standard error, lossily decoded.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
