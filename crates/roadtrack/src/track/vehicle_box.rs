@@ -17,7 +17,8 @@
 //!   cuts them); a run without detections measures the track's own boxes;
 //! - a first pass puts each measured box's bottom centre on the ground, its covariance the
 //!   image noise `noise_px + noise_per_px · size` carried through the calibration, and
-//!   smooths the positions ([`rts`]: constant velocity, white acceleration noise);
+//!   smooths the positions (`vehicle_box/rts.rs`: constant velocity, white acceleration
+//!   noise);
 //! - the heading at each point is that of the smoothed velocity where the speed is at
 //!   least `min_speed_mps`, else the last one before (or the first one after); a vehicle
 //!   never that fast is left as it is;
