@@ -118,14 +118,33 @@ struct TrackState {
     last_written: Option<TrackPoint>,
     /// Smoothed width and height.
     size: Option<(f64, f64)>,
-    /// Class votes with the order each class was first seen.
-    votes: Vec<(ObjectClass, u32)>,
+    /// Class votes.
+    votes: ClassVotes,
 }
 
 impl TrackState {
     fn majority(&self) -> Option<ObjectClass> {
+        self.votes.majority()
+    }
+}
+
+/// A track's class votes, with the order each class was first seen.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ClassVotes(Vec<(ObjectClass, u32)>);
+
+impl ClassVotes {
+    /// One more vote for `class`.
+    pub(crate) fn add(&mut self, class: &ObjectClass) {
+        match self.0.iter_mut().find(|v| v.0 == *class) {
+            Some(v) => v.1 += 1,
+            None => self.0.push((class.clone(), 1)),
+        }
+    }
+
+    /// The class with the most votes; ties go to the class seen first.
+    pub(crate) fn majority(&self) -> Option<ObjectClass> {
         let mut best: Option<&(ObjectClass, u32)> = None;
-        for v in &self.votes {
+        for v in &self.0 {
             // Strictly more votes wins, so ties go to the class seen first.
             if best.is_none_or(|b| v.1 > b.1) {
                 best = Some(v);
@@ -237,10 +256,7 @@ impl PointStage for LifecycleStage {
             let t = self.tracks.entry(p.id).or_default();
             t.hits += 1;
             t.last_seen = frame.frame;
-            match t.votes.iter_mut().find(|v| v.0 == p.class) {
-                Some(v) => v.1 += 1,
-                None => t.votes.push((p.class.clone(), 1)),
-            }
+            t.votes.add(&p.class);
         }
         self.held.push_back(frame);
         let mut out = Vec::new();

@@ -1,6 +1,6 @@
 //! Solids built of blocks (a walker's body, a vehicle) seen through a pinhole camera: the
-//! image box of their corners, for the box models of [`super::walker_box`] and
-//! [`super::vehicle_box`].
+//! image box of their corners, and the headings that turn them, for the box models of
+//! [`super::walker_box`] and [`super::vehicle_box`].
 
 use crate::camera::Pinhole;
 use crate::geometry::{BBox, Point};
@@ -50,6 +50,23 @@ pub(crate) fn image_box(
         width: hi.x - lo.x,
         height: hi.y - lo.y,
     })
+}
+
+/// Each point's heading, or where it has none (standing, too slow to tell) the last one
+/// before it, else the first one after; `None` when no point has one.
+pub(crate) fn hold_headings(headings: &[Option<f64>]) -> Option<Vec<f64>> {
+    let mut last = *headings.iter().flatten().next()?;
+    Some(
+        headings
+            .iter()
+            .map(|h| {
+                if let Some(h) = h {
+                    last = *h;
+                }
+                last
+            })
+            .collect(),
+    )
 }
 
 /// The ground homography of a camera `height_m` up at `(0, −back_m)`, looking along `+y`

@@ -63,8 +63,9 @@
 mod rts;
 
 use super::FramePoints;
+use super::confirm::ClassVotes;
 use super::pipeline::PointStage;
-use super::solid::{Block, image_box};
+use super::solid::{Block, hold_headings, image_box};
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
@@ -482,25 +483,11 @@ impl VehicleBoxStage {
         let point = |&(f, i): &(usize, usize)| &frames[f].points[i];
         // The track's class: the most frequent among its points (the life cycle gives them
         // one already; without it they may differ).
-        let mut counts: Vec<(&ObjectClass, usize)> = Vec::new();
+        let mut votes = ClassVotes::default();
         for a in at {
-            let c = &point(a).class;
-            match counts.iter_mut().find(|(k, _)| *k == c) {
-                Some((_, n)) => *n += 1,
-                None => counts.push((c, 1)),
-            }
+            votes.add(&point(a).class);
         }
-        let class = counts
-            .iter()
-            .fold(
-                None,
-                |best: Option<(&ObjectClass, usize)>, &(c, n)| match best {
-                    Some((_, m)) if m >= n => best,
-                    _ => Some((c, n)),
-                },
-            )
-            .map(|(c, _)| c.clone())
-            .unwrap_or_default();
+        let class = votes.majority().unwrap_or_default();
         let Some((shape, dims)) = cfg.vehicle(&class) else {
             return 0;
         };
@@ -584,18 +571,7 @@ fn headings(states: &[Vector4<f64>], min_speed: f64) -> Option<Vec<f64>> {
         .iter()
         .map(|s| (s[2].hypot(s[3]) >= min_speed).then(|| s[3].atan2(s[2])))
         .collect();
-    let mut next = *moving.iter().flatten().next()?;
-    Some(
-        moving
-            .iter()
-            .map(|h| {
-                if let Some(h) = h {
-                    next = *h;
-                }
-                next
-            })
-            .collect(),
-    )
+    hold_headings(&moving)
 }
 
 impl PointStage for VehicleBoxStage {

@@ -41,7 +41,7 @@
 
 use super::FramePoints;
 use super::pipeline::PointStage;
-use super::solid::{Block, image_box};
+use super::solid::{Block, hold_headings, image_box};
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
@@ -241,28 +241,18 @@ impl WalkerBoxStage {
                 *h = Some(vy.atan2(vx));
             }
         }
-        // Standing still: the last steps' direction, else the first steps' after.
-        let mut last = None;
-        for h in heading.iter_mut() {
-            match h {
-                Some(v) => last = Some(*v),
-                None => *h = last,
-            }
-        }
-        let mut next = None;
-        for h in heading.iter_mut().rev() {
-            match h {
-                Some(v) => next = Some(*v),
-                None => *h = next,
-            }
-        }
+        // Standing still: the last steps' direction, else the first steps' after; a track
+        // never seen walking is left as it is.
+        let Some(heading) = hold_headings(&heading) else {
+            return 0;
+        };
         // The box's bottom centre is the image of the nearest corner of the feet, not of
         // the body's centre on the ground: move the ground point until the body's box there
         // has its bottom centre where the track's box has it (two steps of the fixed point
         // take the error from 0.1–0.2 m to under 0.01 m).
         let centres: Vec<Option<(f64, f64)>> = (0..at.len())
             .map(|j| {
-                let (seen, heading) = (feet[j]?, heading[j]?);
+                let (seen, heading) = (feet[j]?, heading[j]);
                 let mut g = seen;
                 for _ in 0..CENTRE_STEPS {
                     let m = walker_box(&self.camera, cfg, g, heading, cfg.height_m)?;
@@ -275,7 +265,7 @@ impl WalkerBoxStage {
             })
             .collect();
         let model = |j: usize, height: f64| -> Option<BBox> {
-            walker_box(&self.camera, cfg, centres[j]?, heading[j]?, height)
+            walker_box(&self.camera, cfg, centres[j]?, heading[j], height)
         };
         let mut ratios: Vec<f64> = (0..at.len())
             .filter_map(|j| {
