@@ -85,6 +85,10 @@ impl Default for DemoConfig {
 // no download): on the demo's whole cycle it doubles the best HOTA (0.253 -> 0.466,
 // docs/EXPERIMENTS.md "Demo"). Without the mirror, because with it the demo took 91 s on
 // two cores against the minute it must keep to (64 s without).
+// Choice: no `--zoom-small` by default. With `--zoom-small 32` (the oblique intersection's
+// pipeline flag) the lead's HOTA rises on each of seeds 0-6 (held-out 4-6: 0.602 -> 0.628)
+// and its turning counts do not, for 11-12 s more detection on two cores: past the minute
+// (docs/EXPERIMENTS.md "The demo's far rows enlarged").
 pub fn default_detector(given: DetectorArgs) -> DetectorArgs {
     #[cfg(feature = "cnn")]
     if roadtrack_cnn::centernet::default_model_path().is_file() {
@@ -356,7 +360,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
     };
     let filters = demo_filters()?;
     let mrf = demo_mrf()?;
-    let detector = shared_detector(cfg, &seq)?;
+    let detector = shared_detector(cfg, &seq, &calibration)?;
     let shared = Shared {
         cfg,
         relaxation: &relaxation,
@@ -438,6 +442,7 @@ pub fn run_demo(cfg: &DemoConfig, dir: &Path, step: &mut dyn FnMut(&str)) -> Res
 fn shared_detector(
     cfg: &DemoConfig,
     seq: &Path,
+    calibration: &Calibration,
 ) -> Result<Option<Box<dyn roadtrack::detect::Detector>>> {
     use crate::common::DetectorArg;
     if !matches!(
@@ -447,10 +452,12 @@ fn shared_detector(
     {
         return Ok(None);
     }
-    // Not called: neither detector nor the absent gate needs background settings.
+    // Not called: neither detector nor the absent gate needs background settings. The
+    // simulator's calibration keeps `--zoom-small` to the far rows, as `detect --calibration`
+    // does (the whole frame enlarged costs four times the detection).
     let Some(spec) = cfg
         .detector
-        .spec(seq, None, || Ok(Default::default()))
+        .spec(seq, Some(calibration), || Ok(Default::default()))
         .context("the demo's detector")?
     else {
         return Ok(None);

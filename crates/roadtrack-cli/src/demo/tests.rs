@@ -102,7 +102,8 @@ fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
         ..Default::default()
     };
     let options = SourceOptions::default();
-    let mut shared = shared_detector(&cfg, &seq)?.context("cnn runs once")?;
+    let calibration = Calibration::load(&seq.join("calibration.toml"))?;
+    let mut shared = shared_detector(&cfg, &seq, &calibration)?.context("cnn runs once")?;
     let found = std::sync::Arc::new(Found::default());
     // The reader starts first and waits for every frame.
     let reader = {
@@ -143,7 +144,49 @@ fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
         .map_err(|_| anyhow::anyhow!("the reader panicked"))??;
     assert_eq!(found.len(), 12);
     assert!(boxes > 0);
-    assert!(shared_detector(&DemoConfig::default(), &seq)?.is_none());
+    assert!(shared_detector(&DemoConfig::default(), &seq, &calibration)?.is_none());
+    Ok(())
+}
+
+/// `demo --zoom-small PX` enlarges the far rows only, by the simulator's calibration, as
+/// `detect --zoom-small PX --calibration` does: the shared detector finds what that
+/// one finds, and not what the whole frame enlarged finds.
+#[cfg(feature = "cnn")]
+#[test]
+fn the_demo_zooms_the_far_rows_by_its_calibration() -> Result<()> {
+    use crate::common::DetectorArg;
+    let dir = tempfile::tempdir()?;
+    let seq = dir.path().join("sequence");
+    roadtrack_sim::simulate(&demo_sim_config(3, DEFAULT_FPS), 0, &seq, &mut |_, _| {})?;
+    let calibration = Calibration::load(&seq.join("calibration.toml"))?;
+    let mut args = DetectorArgs {
+        detector: Some(DetectorArg::Cnn),
+        ..Default::default()
+    };
+    args.onnx.no_flip = true;
+    args.onnx.zoom_small = Some(32.0);
+    let cfg = DemoConfig {
+        detector: args.clone(),
+        ..Default::default()
+    };
+    let options = SourceOptions::default();
+    let info = source::open(&seq, &options)?.info.clone();
+    let build = |c: Option<&Calibration>| -> Result<Box<dyn roadtrack::detect::Detector>> {
+        let spec = args
+            .spec(&seq, c, || Ok(Default::default()))?
+            .context("a detector")?;
+        Ok(spec.build(&seq, &options, &info)?)
+    };
+    let mut shared = shared_detector(&cfg, &seq, &calibration)?.context("cnn")?;
+    let (mut rows, mut whole) = (build(Some(&calibration))?, build(None)?);
+    let mut differs = false;
+    for frame in source::open(&seq, &options)? {
+        let frame = frame?;
+        let got = shared.detect(&frame)?;
+        assert_eq!(got, rows.detect(&frame)?, "frame {}", frame.index);
+        differs |= got != whole.detect(&frame)?;
+    }
+    assert!(differs, "the whole frame enlarged gave the same boxes");
     Ok(())
 }
 
