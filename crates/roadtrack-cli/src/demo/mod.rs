@@ -87,7 +87,7 @@ impl Default for DemoConfig {
 // two cores against the minute it must keep to (64 s without).
 // Choice: no `--zoom-small` by default. With `--zoom-small 32` (the oblique intersection's
 // pipeline flag) the lead's HOTA rises on each of seeds 0-6 (held-out 4-6: 0.602 -> 0.628)
-// and its turning counts do not, for 11-12 s more detection on two cores: past the minute
+// and its turning counts do not, for 11-15 s more on two cores: past the minute
 // (docs/EXPERIMENTS.md "The demo's far rows enlarged").
 pub fn default_detector(given: DetectorArgs) -> DetectorArgs {
     #[cfg(feature = "cnn")]
