@@ -13,6 +13,7 @@
 pub mod confirm;
 pub mod extend;
 pub mod filter;
+mod ground_path;
 pub mod lifecycle;
 pub mod link;
 pub mod method;

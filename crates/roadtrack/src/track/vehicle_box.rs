@@ -10,27 +10,14 @@
 //! the ground, where its near, large boxes place it to centimetres; the calibration says
 //! how it looks at each point.
 //!
-//! For each vehicle track (car, lorry, bus, motorcycle, bicycle), with the whole run:
-//!
-//! - its measurements are the detections the tracker was given that overlap its boxes
-//!   (the best one per frame at IoU ≥ `min_iou`; none touching the frame's edge, which
-//!   cuts them); a run without detections measures the track's own boxes;
-//! - a first pass puts each measured box's bottom centre on the ground, its covariance the
-//!   image noise `noise_px + noise_per_px · size` carried through the calibration, and
-//!   smooths the positions (`vehicle_box/rts.rs`: constant velocity, white acceleration
-//!   noise);
-//! - the heading at each point is that of the smoothed velocity where the speed is at
-//!   least `min_speed_mps`, else the last one before (or the first one after); a vehicle
-//!   never that fast is left as it is;
-//! - then `passes` times: each measurement is put where the model's box, turned to the
-//!   heading, has its centre at the measured box's centre (Newton's method), with the
-//!   covariance of that mapping; from the second pass on, a measurement whose centre lies
-//!   more than `outlier_sigmas` noise units from the model's box at the smoothed state is
-//!   left out of that pass; the positions are smoothed again;
-//! - each smoothing is done with every acceleration noise of `accel_noise` and keeps the
-//!   likeliest (the innovations' density): a car cruising down a road takes a stiff model,
-//!   one that turns or brakes a loose one;
-//! - each of the track's boxes is the model's box at the smoothed state (centre and size).
+//! For each vehicle track (car, lorry, bus, motorcycle, bicycle), with the whole run, its
+//! path on the ground is smoothed from its measured boxes and the vehicle model of its
+//! class ([`super::ground_path`]: the detections overlapping its boxes at IoU ≥ `min_iou`,
+//! a first pass from the boxes' bottom centres, then `passes` passes placing each
+//! measurement under the model's box centre, outliers beyond `outlier_sigmas` left out, the
+//! likeliest of the `accel_noise` values: a car cruising down a road takes a stiff model,
+//! one that turns or brakes a loose one); each of the track's boxes is then the model's box
+//! at the smoothed state (centre and size), turned to the smoothed heading.
 //!
 //! The vehicles are the simulator's (`roadtrack simulate`, docs/SIMULATOR.md): a car is an
 //! under-body, a body to 0.58 of its height and a cabin; a lorry a chassis, a cab and a
@@ -60,20 +47,18 @@
 //! Choice: one size per class, not fitted per track. Fitting a lorry's length and height to
 //! its boxes of 12 px or more changed held-out HOTA by +0.0001 in the prototype.
 
-mod rts;
-
 use super::FramePoints;
 use super::confirm::ClassVotes;
+use super::ground_path::{GroundPath, Measurements, PathParams};
 use super::pipeline::PointStage;
-use super::solid::{Block, hold_headings, image_box};
+use super::solid::{Block, image_box};
 use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
 use crate::detect::FrameDetections;
 use crate::error::{Error, Result, check_range};
-use crate::geometry::{BBox, Point};
-use nalgebra::{Matrix2, Vector2, Vector4};
-use rts::Fix;
+use crate::geometry::BBox;
+use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -318,25 +303,14 @@ pub fn vehicle_box(
     image_box(camera, &blocks(shape, dims), (x, y), heading)
 }
 
-/// Newton steps that put a measurement on the ground under the model's box centre.
-const NEWTON_STEPS: usize = 3;
-/// Ground step of the model's numerical Jacobian, m.
-const JACOBIAN_STEP_M: f64 = 0.05;
-/// Image step of the calibration's numerical Jacobian, px.
-const JACOBIAN_STEP_PX: f64 = 0.5;
-/// Added to each measurement's covariance, m²: keeps it invertible where the calibration
-/// squeezes a pixel to nothing.
-const COVARIANCE_FLOOR_M2: f64 = 1e-4;
-
 /// The offline stage (see the module documentation).
 #[derive(Debug)]
 pub struct VehicleBoxStage {
     config: VehicleBoxConfig,
     calibration: Calibration,
     camera: Pinhole,
-    size: (f64, f64),
     held: Vec<FramePoints>,
-    detections: BTreeMap<u32, Vec<BBox>>,
+    measurements: Measurements,
     changed: usize,
 }
 
@@ -358,32 +332,6 @@ impl Model<'_> {
         let c = self.bbox(g, heading)?.centre();
         Some(Vector2::new(c.x, c.y))
     }
-
-    /// The ground point whose box has its centre at `seen` (px), from `start`, and the
-    /// inverse of the centre's Jacobian there (m per px).
-    fn place(
-        &self,
-        seen: Vector2<f64>,
-        start: Vector2<f64>,
-        heading: f64,
-    ) -> Option<(Vector2<f64>, Matrix2<f64>)> {
-        let mut g = start;
-        let mut inverse = Matrix2::zeros();
-        for _ in 0..NEWTON_STEPS {
-            let c = self.centre(g, heading)?;
-            let mut j = Matrix2::zeros();
-            for k in 0..2 {
-                let mut d = Vector2::zeros();
-                d[k] = JACOBIAN_STEP_M;
-                let col = (self.centre(g + d, heading)? - self.centre(g - d, heading)?)
-                    / (2.0 * JACOBIAN_STEP_M);
-                j.set_column(k, &col);
-            }
-            inverse = j.try_inverse()?;
-            g += inverse * (seen - c);
-        }
-        g.iter().all(|v| v.is_finite()).then_some((g, inverse))
-    }
 }
 
 impl VehicleBoxStage {
@@ -404,9 +352,8 @@ impl VehicleBoxStage {
             config,
             calibration: calibration.clone(),
             camera,
-            size: (f64::from(width), f64::from(height)),
             held: Vec::new(),
-            detections: BTreeMap::new(),
+            measurements: Measurements::new(f64::from(width), f64::from(height)),
             changed: 0,
         })
     }
@@ -414,66 +361,6 @@ impl VehicleBoxStage {
     /// Boxes redrawn so far (known after [`PointStage::finish`]).
     pub fn changed(&self) -> usize {
         self.changed
-    }
-
-    /// Whether `b` touches the frame's edge (within 1 px).
-    fn at_edge(&self, b: &BBox) -> bool {
-        let (w, h) = self.size;
-        b.left < 1.0 || b.top < 1.0 || b.right() > w - 1.0 || b.bottom() > h - 1.0
-    }
-
-    /// The measured box of a track's box `b` in `frame`: the best-overlapping detection
-    /// (the box itself when the run had none), or `None`.
-    fn measured(&self, frame: u32, b: &BBox) -> Option<BBox> {
-        let m = if self.detections.is_empty() {
-            *b
-        } else {
-            let (iou, d) = self
-                .detections
-                .get(&frame)?
-                .iter()
-                .map(|d| (d.iou(b), *d))
-                .max_by(|x, y| x.0.total_cmp(&y.0))?;
-            if iou < self.config.min_iou {
-                return None;
-            }
-            d
-        };
-        (!self.at_edge(&m)).then_some(m)
-    }
-
-    /// The measurement noise of box `b`, px.
-    fn noise(&self, b: &BBox) -> f64 {
-        self.config.noise_px + self.config.noise_per_px * b.width.max(b.height)
-    }
-
-    /// A ground fix of image point `p` (the bottom centre of a box) with noise `sigma` px.
-    fn ground_fix(&self, p: Point, sigma: f64) -> Option<Fix> {
-        let g = |x: f64, y: f64| -> Option<Vector2<f64>> {
-            let (gx, gy) = self.calibration.ground_from_image(Point::new(x, y))?;
-            Some(Vector2::new(gx, gy))
-        };
-        let e = JACOBIAN_STEP_PX;
-        let mut j = Matrix2::zeros();
-        j.set_column(0, &((g(p.x + e, p.y)? - g(p.x - e, p.y)?) / (2.0 * e)));
-        j.set_column(1, &((g(p.x, p.y + e)? - g(p.x, p.y - e)?) / (2.0 * e)));
-        Some((g(p.x, p.y)?, covariance(&j, sigma)))
-    }
-
-    /// The smoothed states under the likeliest of the configured acceleration noises.
-    fn smooth(&self, times: &[f64], fixes: &[Option<Fix>]) -> Option<Vec<Vector4<f64>>> {
-        self.config
-            .accel_noise
-            .iter()
-            .filter_map(|&q| rts::smooth(times, fixes, q))
-            .fold(
-                None,
-                |best: Option<(Vec<Vector4<f64>>, f64)>, (s, ll)| match best {
-                    Some((_, b)) if b >= ll => best,
-                    _ => Some((s, ll)),
-                },
-            )
-            .map(|(s, _)| s)
     }
 
     /// Redraws the boxes of one track: `at` holds `(frame index, point index)` in frame
@@ -499,55 +386,28 @@ impl VehicleBoxStage {
         let times: Vec<f64> = at.iter().map(|a| point(a).time_s).collect();
         let seen: Vec<Option<BBox>> = at
             .iter()
-            .map(|a| self.measured(point(a).frame, &point(a).bbox))
-            .collect();
-        if seen.iter().flatten().count() < 3 {
-            return 0;
-        }
-        // First pass: the boxes' bottom centres on the ground.
-        let fixes: Vec<Option<Fix>> = seen
-            .iter()
-            .map(|m| {
-                let m = m.as_ref()?;
-                self.ground_fix(Point::new(m.centre().x, m.bottom()), self.noise(m))
+            .map(|a| {
+                self.measurements
+                    .measured(point(a).frame, &point(a).bbox, cfg.min_iou)
             })
             .collect();
-        let Some(mut states) = self.smooth(&times, &fixes) else {
-            return 0;
+        let path = GroundPath {
+            calibration: &self.calibration,
+            params: PathParams {
+                accel_noise: &cfg.accel_noise,
+                noise_px: cfg.noise_px,
+                noise_per_px: cfg.noise_per_px,
+                outlier_sigmas: cfg.outlier_sigmas,
+                passes: cfg.passes,
+                min_speed_mps: cfg.min_speed_mps,
+            },
         };
-        for pass in 0..cfg.passes {
-            let Some(heading) = headings(&states, cfg.min_speed_mps) else {
-                return 0;
-            };
-            let fixes: Vec<Option<Fix>> = seen
-                .iter()
-                .enumerate()
-                .map(|(j, m)| {
-                    let m = m.as_ref()?;
-                    let c = Vector2::new(m.centre().x, m.centre().y);
-                    let sigma = self.noise(m);
-                    let at = states[j].xy();
-                    if pass > 0 {
-                        let r = (model.centre(at, heading[j])? - c).norm();
-                        if r > cfg.outlier_sigmas * sigma {
-                            return None;
-                        }
-                    }
-                    let (g, inverse) = model.place(c, at, heading[j])?;
-                    Some((g, covariance(&inverse, sigma)))
-                })
-                .collect();
-            match self.smooth(&times, &fixes) {
-                Some(s) => states = s,
-                None => return 0,
-            }
-        }
-        let Some(heading) = headings(&states, cfg.min_speed_mps) else {
+        let Some((states, heading)) = path.fit(&times, &seen, |g, h| model.centre(g, h)) else {
             return 0;
         };
         let mut changed = 0;
         for (j, &(f, i)) in at.iter().enumerate() {
-            if self.at_edge(&frames[f].points[i].bbox) {
+            if self.measurements.at_edge(&frames[f].points[i].bbox) {
                 continue;
             }
             if let Some(b) = model.bbox(states[j].xy(), heading[j]) {
@@ -557,21 +417,6 @@ impl VehicleBoxStage {
         }
         changed
     }
-}
-
-/// `J · Jᵀ · σ²`, plus the floor.
-fn covariance(j: &Matrix2<f64>, sigma: f64) -> Matrix2<f64> {
-    j * j.transpose() * (sigma * sigma) + Matrix2::identity() * COVARIANCE_FLOOR_M2
-}
-
-/// The heading of each state's velocity where its speed is at least `min_speed`, else the
-/// last such before, else the first after; `None` when the vehicle never moves that fast.
-fn headings(states: &[Vector4<f64>], min_speed: f64) -> Option<Vec<f64>> {
-    let moving: Vec<Option<f64>> = states
-        .iter()
-        .map(|s| (s[2].hypot(s[3]) >= min_speed).then(|| s[3].atan2(s[2])))
-        .collect();
-    hold_headings(&moving)
 }
 
 impl PointStage for VehicleBoxStage {
@@ -585,14 +430,7 @@ impl PointStage for VehicleBoxStage {
     }
 
     fn see_detections(&mut self, frame: u32, detections: &FrameDetections) {
-        let boxes: Vec<BBox> = detections
-            .detections
-            .iter()
-            .filter_map(|d| d.bbox())
-            .collect();
-        if !boxes.is_empty() {
-            self.detections.insert(frame, boxes);
-        }
+        self.measurements.see(frame, detections);
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {

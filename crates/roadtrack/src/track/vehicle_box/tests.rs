@@ -1,5 +1,6 @@
 use super::*;
 use crate::detection::Detection;
+use crate::geometry::Point;
 use crate::track::frames_of;
 use crate::track_point::TrackPoint;
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};

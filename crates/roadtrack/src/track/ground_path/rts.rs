@@ -1,5 +1,5 @@
 //! A constant-velocity Rauch–Tung–Striebel smoother on the ground plane: the positions of
-//! one vehicle, each measured with its own covariance (or not at all), smoothed over the
+//! one vehicle or walker, each measured with its own covariance (or not at all), smoothed over the
 //! whole track.
 //!
 //! State `[x, y, vx, vy]` (m, m/s); between times `t` and `t + dt` it moves at its velocity,
