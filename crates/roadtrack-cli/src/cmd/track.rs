@@ -95,14 +95,16 @@ pub struct Args {
     #[arg(long, value_name = "F.geojson", requires = "calibration")]
     pub geojson: Option<PathBuf>,
     /// Cameras that see people from the side: give each pedestrian's box the size of a
-    /// walker's body at its place on the ground, turned to the walk, through the camera
-    /// recovered from the calibration (needs --calibration with perspective; docs/TRACKING.md
-    /// "Walkers' boxes from a body model").
+    /// walker's body at its place on the ground, turned to the walk, and the centre of that
+    /// body on the walker's smoothed path, through the camera recovered from the calibration
+    /// (needs --calibration with perspective; docs/TRACKING.md "Walkers' boxes from a body
+    /// model").
     #[arg(long, requires = "calibration", conflicts_with = "as_published")]
     pub walker_boxes: bool,
-    /// With --walker-boxes: a TOML file with the body's sizes and the direction's settings
-    /// (a `WalkerBoxConfig`: depth_m, width_m, height_m, half_window_frames,
-    /// min_speed_mps; fields left out keep the simulator's walker).
+    /// With --walker-boxes: a TOML file with the body's sizes, the direction's and the
+    /// path's settings (a `WalkerBoxConfig`: depth_m, width_m, height_m,
+    /// half_window_frames, min_speed_mps, smooth_centres, accel_noise, noise_px,
+    /// noise_per_px, min_iou, outlier_sigmas, passes; fields left out keep the defaults).
     #[arg(long, value_name = "F.toml", requires = "walker_boxes")]
     pub walker_config: Option<PathBuf>,
     /// Cameras that look along a road: box each vehicle from its path on the ground,
@@ -407,7 +409,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
         stages.push(Box::new(SmoothStage::new(smooth)?));
     }
     if let (true, Some(cal), Some(path)) = (args.walker_boxes, &calibration, &args.calibration) {
-        // Choice: after the smoothing, whose centres it keeps and whose heights it fits.
+        // Choice: after the smoothing, whose heights it fits (and whose centres it keeps
+        // with `smooth_centres = false`).
         let config: WalkerBoxConfig = match &args.walker_config {
             Some(p) => roadtrack::config::load_toml(p).context("reading --walker-config")?,
             None => WalkerBoxConfig::default(),

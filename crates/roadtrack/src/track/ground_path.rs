@@ -26,6 +26,7 @@ mod rts;
 use super::solid::hold_headings;
 use crate::calibration::Calibration;
 use crate::detect::FrameDetections;
+use crate::error::{Error, Result, check_range};
 use crate::geometry::{BBox, Point};
 use nalgebra::{Matrix2, Vector2, Vector4};
 use rts::Fix;
@@ -50,6 +51,49 @@ pub(crate) struct PathParams<'a> {
     pub outlier_sigmas: f64,
     pub passes: u32,
     pub min_speed_mps: f64,
+}
+
+impl PathParams<'_> {
+    /// Checks every setting and `min_iou`, naming `owner`'s field.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] naming the field.
+    pub(crate) fn validate(&self, owner: &'static str, min_iou: f64) -> Result<()> {
+        use std::ops::Bound::{Excluded, Included, Unbounded};
+        if self.accel_noise.is_empty() {
+            return Err(Error::config(
+                owner,
+                "accel_noise",
+                "needs at least one value",
+            ));
+        }
+        for &q in self.accel_noise {
+            check_range(owner, "accel_noise", q, (Excluded(0.0), Unbounded))?;
+        }
+        check_range(owner, "noise_px", self.noise_px, (Excluded(0.0), Unbounded))?;
+        check_range(
+            owner,
+            "noise_per_px",
+            self.noise_per_px,
+            (Included(0.0), Unbounded),
+        )?;
+        check_range(owner, "min_iou", min_iou, (Excluded(0.0), Included(1.0)))?;
+        check_range(
+            owner,
+            "outlier_sigmas",
+            self.outlier_sigmas,
+            (Excluded(0.0), Unbounded),
+        )?;
+        if self.passes > 100 {
+            return Err(Error::config(owner, "passes", "must be 0–100"));
+        }
+        check_range(
+            owner,
+            "min_speed_mps",
+            self.min_speed_mps,
+            (Excluded(0.0), Unbounded),
+        )
+    }
 }
 
 /// The detections of a run, by frame, that measure tracks' boxes.

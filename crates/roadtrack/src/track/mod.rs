@@ -122,6 +122,26 @@ pub(crate) fn frames_of(points: &[TrackPoint], n: u32) -> Vec<FramePoints> {
         .collect()
 }
 
+/// Test input: a frame's detections with `boxes` (ids from 1, no class or score).
+#[cfg(test)]
+pub(crate) fn detections_of(
+    boxes: &[crate::geometry::BBox],
+    frame: u32,
+) -> crate::detect::FrameDetections {
+    crate::detect::FrameDetections {
+        detections: boxes
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let mut d = crate::detection::Detection::at(frame, i as u64 + 1, b.centre());
+                d.size_px = Some((b.width, b.height));
+                d
+            })
+            .collect(),
+        foreground: None,
+    }
+}
+
 /// A multi-object tracker that consumes frames in order.
 ///
 /// Implemented by [`relaxation::tracker::RelaxationTracker`] (seed 000 chained frame to

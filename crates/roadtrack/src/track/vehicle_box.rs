@@ -56,7 +56,7 @@ use crate::calibration::Calibration;
 use crate::camera::Pinhole;
 use crate::class::ObjectClass;
 use crate::detect::FrameDetections;
-use crate::error::{Error, Result, check_range};
+use crate::error::{Result, check_range};
 use crate::geometry::BBox;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
@@ -121,7 +121,7 @@ impl VehicleBoxConfig {
     /// # Errors
     /// [`Error::InvalidConfig`] naming the field.
     pub fn validate(&self) -> Result<()> {
-        use std::ops::Bound::{Excluded, Included, Unbounded};
+        use std::ops::Bound::{Excluded, Included};
         for (name, dims) in [
             ("car_m", self.car_m),
             ("truck_m", self.truck_m),
@@ -133,54 +133,20 @@ impl VehicleBoxConfig {
                 check_range("VehicleBoxConfig", name, v, (Excluded(0.0), Included(30.0)))?;
             }
         }
-        if self.accel_noise.is_empty() {
-            return Err(Error::config(
-                "VehicleBoxConfig",
-                "accel_noise",
-                "needs at least one value",
-            ));
+        self.path_params()
+            .validate("VehicleBoxConfig", self.min_iou)
+    }
+
+    /// The path's settings.
+    fn path_params(&self) -> PathParams<'_> {
+        PathParams {
+            accel_noise: &self.accel_noise,
+            noise_px: self.noise_px,
+            noise_per_px: self.noise_per_px,
+            outlier_sigmas: self.outlier_sigmas,
+            passes: self.passes,
+            min_speed_mps: self.min_speed_mps,
         }
-        for &q in &self.accel_noise {
-            check_range(
-                "VehicleBoxConfig",
-                "accel_noise",
-                q,
-                (Excluded(0.0), Unbounded),
-            )?;
-        }
-        check_range(
-            "VehicleBoxConfig",
-            "noise_px",
-            self.noise_px,
-            (Excluded(0.0), Unbounded),
-        )?;
-        check_range(
-            "VehicleBoxConfig",
-            "noise_per_px",
-            self.noise_per_px,
-            (Included(0.0), Unbounded),
-        )?;
-        check_range(
-            "VehicleBoxConfig",
-            "min_iou",
-            self.min_iou,
-            (Excluded(0.0), Included(1.0)),
-        )?;
-        check_range(
-            "VehicleBoxConfig",
-            "outlier_sigmas",
-            self.outlier_sigmas,
-            (Excluded(0.0), Unbounded),
-        )?;
-        if self.passes > 100 {
-            return Err(Error::config("VehicleBoxConfig", "passes", "must be 0–100"));
-        }
-        check_range(
-            "VehicleBoxConfig",
-            "min_speed_mps",
-            self.min_speed_mps,
-            (Excluded(0.0), Unbounded),
-        )
     }
 
     /// The shape and size of `class`, or `None` for a class that is not a vehicle.
@@ -393,14 +359,7 @@ impl VehicleBoxStage {
             .collect();
         let path = GroundPath {
             calibration: &self.calibration,
-            params: PathParams {
-                accel_noise: &cfg.accel_noise,
-                noise_px: cfg.noise_px,
-                noise_per_px: cfg.noise_per_px,
-                outlier_sigmas: cfg.outlier_sigmas,
-                passes: cfg.passes,
-                min_speed_mps: cfg.min_speed_mps,
-            },
+            params: cfg.path_params(),
         };
         let Some((states, heading)) = path.fit(&times, &seen, |g, h| model.centre(g, h)) else {
             return 0;

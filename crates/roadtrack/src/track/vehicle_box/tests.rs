@@ -1,5 +1,4 @@
 use super::*;
-use crate::detection::Detection;
 use crate::geometry::Point;
 use crate::track::frames_of;
 use crate::track_point::TrackPoint;
@@ -47,21 +46,6 @@ fn point(frame: u32, id: u64, class: ObjectClass, b: BBox) -> TrackPoint {
     crate::track::point_at(frame, id, class, b)
 }
 
-fn detections(boxes: &[BBox], frame: u32) -> FrameDetections {
-    FrameDetections {
-        detections: boxes
-            .iter()
-            .enumerate()
-            .map(|(i, b)| {
-                let mut d = Detection::at(frame, i as u64 + 1, b.centre());
-                d.size_px = Some((b.width, b.height));
-                d
-            })
-            .collect(),
-        foreground: None,
-    }
-}
-
 /// Runs the stage on `points` over `n` frames, the detector having found `dets(frame)`.
 fn run(
     config: VehicleBoxConfig,
@@ -71,7 +55,10 @@ fn run(
 ) -> Result<(Vec<FramePoints>, usize)> {
     let mut stage = VehicleBoxStage::new(config, &calibration(), 640, 480)?;
     for f in frames_of(points, n) {
-        stage.see_detections(f.frame, &detections(&dets(f.frame), f.frame));
+        stage.see_detections(
+            f.frame,
+            &crate::track::detections_of(&dets(f.frame), f.frame),
+        );
         assert!(stage.push(f)?.is_empty(), "the stage holds every frame");
     }
     let out = stage.finish()?;
