@@ -23,8 +23,10 @@
 
 mod rts;
 
+use super::FramePoints;
 use super::solid::hold_headings;
 use crate::calibration::Calibration;
+use crate::camera::Pinhole;
 use crate::detect::FrameDetections;
 use crate::error::{Error, Result, check_range};
 use crate::geometry::{BBox, Point};
@@ -150,6 +152,71 @@ impl Measurements {
         };
         (!self.at_edge(&m)).then_some(m)
     }
+}
+
+/// What a box stage sees through: the calibration, the camera recovered from it, and the
+/// run's detections.
+#[derive(Debug)]
+pub(crate) struct View {
+    pub calibration: Calibration,
+    pub camera: Pinhole,
+    pub measurements: Measurements,
+}
+
+impl View {
+    /// The view of `width × height` px frames through `calibration`.
+    ///
+    /// # Errors
+    /// A calibration no pinhole camera can be recovered from ([`Pinhole::from_calibration`]).
+    pub(crate) fn new(calibration: &Calibration, width: u32, height: u32) -> Result<Self> {
+        Ok(Self {
+            calibration: calibration.clone(),
+            camera: Pinhole::from_calibration(calibration, width, height)?,
+            measurements: Measurements::new(f64::from(width), f64::from(height)),
+        })
+    }
+
+    /// The times of one track's points (`at`: `(frame index, point index)` in frame order)
+    /// and their measured boxes ([`Measurements::measured`]).
+    pub(crate) fn measure(
+        &self,
+        frames: &[FramePoints],
+        at: &[(usize, usize)],
+        min_iou: f64,
+    ) -> (Vec<f64>, Vec<Option<BBox>>) {
+        at.iter()
+            .map(|&(f, i)| {
+                let p = &frames[f].points[i];
+                let seen = self.measurements.measured(p.frame, &p.bbox, min_iou);
+                (p.time_s, seen)
+            })
+            .unzip()
+    }
+
+    /// The smoother of `params` on this view's ground.
+    pub(crate) fn ground<'a>(&'a self, params: PathParams<'a>) -> GroundPath<'a> {
+        GroundPath {
+            calibration: &self.calibration,
+            params,
+        }
+    }
+}
+
+/// The points of `frames` that `keep` takes, by track id: `(frame index, point index)` in
+/// frame order (`frames` sorted by frame).
+pub(crate) fn tracks(
+    frames: &[FramePoints],
+    keep: impl Fn(&crate::track_point::TrackPoint) -> bool,
+) -> BTreeMap<u64, Vec<(usize, usize)>> {
+    let mut tracks: BTreeMap<u64, Vec<(usize, usize)>> = BTreeMap::new();
+    for (f, frame) in frames.iter().enumerate() {
+        for (i, p) in frame.points.iter().enumerate() {
+            if keep(p) {
+                tracks.entry(p.id).or_default().push((f, i));
+            }
+        }
+    }
+    tracks
 }
 
 /// Smooths paths on the ground seen through one calibration.

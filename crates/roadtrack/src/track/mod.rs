@@ -142,6 +142,34 @@ pub(crate) fn detections_of(
     }
 }
 
+/// Test run of an offline box stage: `points` over frames `1..=n`, the detector having
+/// found `dets(frame)` in each (given to the stage when it asks for detections; a stage
+/// that does not ask must be given none); the frames out and the boxes the stage changed.
+#[cfg(test)]
+pub(crate) fn run_box_stage<S: pipeline::PointStage>(
+    stage: &mut S,
+    points: &[TrackPoint],
+    n: u32,
+    dets: impl Fn(u32) -> Vec<crate::geometry::BBox>,
+) -> crate::error::Result<Vec<FramePoints>> {
+    for f in frames_of(points, n) {
+        let boxes = dets(f.frame);
+        assert!(stage.wants_detections() || boxes.is_empty());
+        stage.see_detections(f.frame, &detections_of(&boxes, f.frame));
+        assert!(stage.push(f)?.is_empty(), "the stage holds every frame");
+    }
+    stage.finish()
+}
+
+/// Test output: the boxes of track `id` in `out`, in frame order.
+#[cfg(test)]
+pub(crate) fn boxes_of(out: &[FramePoints], id: u64) -> Vec<crate::geometry::BBox> {
+    out.iter()
+        .flat_map(|f| f.points.iter().filter(|p| p.id == id))
+        .map(|p| p.bbox)
+        .collect()
+}
+
 /// A multi-object tracker that consumes frames in order.
 ///
 /// Implemented by [`relaxation::tracker::RelaxationTracker`] (seed 000 chained frame to

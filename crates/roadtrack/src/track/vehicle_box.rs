@@ -49,7 +49,7 @@
 
 use super::FramePoints;
 use super::confirm::ClassVotes;
-use super::ground_path::{GroundPath, Measurements, PathParams};
+use super::ground_path::{PathParams, View, tracks};
 use super::pipeline::PointStage;
 use super::solid::{Block, image_box};
 use crate::calibration::Calibration;
@@ -60,7 +60,6 @@ use crate::error::{Result, check_range};
 use crate::geometry::BBox;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 
 /// Parameters of [`VehicleBoxStage`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -273,10 +272,8 @@ pub fn vehicle_box(
 #[derive(Debug)]
 pub struct VehicleBoxStage {
     config: VehicleBoxConfig,
-    calibration: Calibration,
-    camera: Pinhole,
+    view: View,
     held: Vec<FramePoints>,
-    measurements: Measurements,
     changed: usize,
 }
 
@@ -313,13 +310,10 @@ impl VehicleBoxStage {
         height: u32,
     ) -> Result<Self> {
         config.validate()?;
-        let camera = Pinhole::from_calibration(calibration, width, height)?;
         Ok(Self {
             config,
-            calibration: calibration.clone(),
-            camera,
+            view: View::new(calibration, width, height)?,
             held: Vec::new(),
-            measurements: Measurements::new(f64::from(width), f64::from(height)),
             changed: 0,
         })
     }
@@ -345,28 +339,18 @@ impl VehicleBoxStage {
             return 0;
         };
         let model = Model {
-            camera: &self.camera,
+            camera: &self.view.camera,
             shape,
             dims,
         };
-        let times: Vec<f64> = at.iter().map(|a| point(a).time_s).collect();
-        let seen: Vec<Option<BBox>> = at
-            .iter()
-            .map(|a| {
-                self.measurements
-                    .measured(point(a).frame, &point(a).bbox, cfg.min_iou)
-            })
-            .collect();
-        let path = GroundPath {
-            calibration: &self.calibration,
-            params: cfg.path_params(),
-        };
+        let (times, seen) = self.view.measure(frames, at, cfg.min_iou);
+        let path = self.view.ground(cfg.path_params());
         let Some((states, heading)) = path.fit(&times, &seen, |g, h| model.centre(g, h)) else {
             return 0;
         };
         let mut changed = 0;
         for (j, &(f, i)) in at.iter().enumerate() {
-            if self.measurements.at_edge(&frames[f].points[i].bbox) {
+            if self.view.measurements.at_edge(&frames[f].points[i].bbox) {
                 continue;
             }
             if let Some(b) = model.bbox(states[j].xy(), heading[j]) {
@@ -389,19 +373,13 @@ impl PointStage for VehicleBoxStage {
     }
 
     fn see_detections(&mut self, frame: u32, detections: &FrameDetections) {
-        self.measurements.see(frame, detections);
+        self.view.measurements.see(frame, detections);
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
         let mut frames = std::mem::take(&mut self.held);
         frames.sort_by_key(|f| f.frame);
-        let mut tracks: BTreeMap<u64, Vec<(usize, usize)>> = BTreeMap::new();
-        for (f, frame) in frames.iter().enumerate() {
-            for (i, p) in frame.points.iter().enumerate() {
-                tracks.entry(p.id).or_default().push((f, i));
-            }
-        }
-        for at in tracks.values() {
+        for at in tracks(&frames, |_| true).values() {
             self.changed += self.redraw(&mut frames, at);
         }
         Ok(frames)

@@ -53,7 +53,7 @@
 //! the detector, boxes only what is inside the frame.
 
 use super::FramePoints;
-use super::ground_path::{GroundPath, Measurements, PathParams};
+use super::ground_path::{PathParams, View, tracks};
 use super::pipeline::PointStage;
 use super::solid::{Block, hold_headings, image_box};
 use crate::calibration::Calibration;
@@ -64,7 +64,6 @@ use crate::error::{Error, Result, check_range};
 use crate::geometry::{BBox, Point};
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 
 /// Parameters of [`WalkerBoxStage`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -208,10 +207,8 @@ pub fn walker_box(
 #[derive(Debug)]
 pub struct WalkerBoxStage {
     config: WalkerBoxConfig,
-    calibration: Calibration,
-    camera: Pinhole,
+    view: View,
     held: Vec<FramePoints>,
-    measurements: Measurements,
     changed: usize,
 }
 
@@ -228,13 +225,10 @@ impl WalkerBoxStage {
         height: u32,
     ) -> Result<Self> {
         config.validate()?;
-        let camera = Pinhole::from_calibration(calibration, width, height)?;
         Ok(Self {
             config,
-            calibration: calibration.clone(),
-            camera,
+            view: View::new(calibration, width, height)?,
             held: Vec::new(),
-            measurements: Measurements::new(f64::from(width), f64::from(height)),
             changed: 0,
         })
     }
@@ -253,7 +247,8 @@ impl WalkerBoxStage {
             .iter()
             .map(|a| {
                 let b = point(a).bbox;
-                self.calibration
+                self.view
+                    .calibration
                     .ground_from_image(Point::new(b.centre().x, b.bottom()))
             })
             .collect();
@@ -305,8 +300,9 @@ impl WalkerBoxStage {
                 let (seen, heading) = (feet[j]?, heading[j]);
                 let mut g = seen;
                 for _ in 0..CENTRE_STEPS {
-                    let m = walker_box(&self.camera, cfg, g, heading, cfg.height_m)?;
+                    let m = walker_box(&self.view.camera, cfg, g, heading, cfg.height_m)?;
                     let (x, y) = self
+                        .view
                         .calibration
                         .ground_from_image(Point::new(m.centre().x, m.bottom()))?;
                     g = (g.0 + seen.0 - x, g.1 + seen.1 - y);
@@ -315,7 +311,7 @@ impl WalkerBoxStage {
             })
             .collect();
         let model = |j: usize, height: f64| -> Option<BBox> {
-            walker_box(&self.camera, cfg, centres[j]?, heading[j], height)
+            walker_box(&self.view.camera, cfg, centres[j]?, heading[j], height)
         };
         let mut ratios: Vec<f64> = (0..at.len())
             .filter_map(|j| {
@@ -338,7 +334,7 @@ impl WalkerBoxStage {
         let mut changed = 0;
         for (j, &(f, i)) in at.iter().enumerate() {
             let b = frames[f].points[i].bbox;
-            if self.measurements.at_edge(&b) {
+            if self.view.measurements.at_edge(&b) {
                 continue;
             }
             let Some(m) = model(j, height) else { continue };
@@ -362,23 +358,12 @@ impl WalkerBoxStage {
         height: f64,
     ) -> Option<Vec<Option<Point>>> {
         let cfg = &self.config;
-        let point = |&(f, i): &(usize, usize)| &frames[f].points[i];
-        let times: Vec<f64> = at.iter().map(|a| point(a).time_s).collect();
-        let seen: Vec<Option<BBox>> = at
-            .iter()
-            .map(|a| {
-                self.measurements
-                    .measured(point(a).frame, &point(a).bbox, cfg.min_iou)
-            })
-            .collect();
+        let (times, seen) = self.view.measure(frames, at, cfg.min_iou);
         let body = |g: Vector2<f64>, heading: f64| {
-            walker_box(&self.camera, cfg, (g.x, g.y), heading, height)
+            walker_box(&self.view.camera, cfg, (g.x, g.y), heading, height)
                 .filter(|b| b.width.is_finite() && b.height.is_finite())
         };
-        let ground = GroundPath {
-            calibration: &self.calibration,
-            params: cfg.path_params(),
-        };
+        let ground = self.view.ground(cfg.path_params());
         let (states, heading) = ground.fit(&times, &seen, |g, h| {
             let c = body(g, h)?.centre();
             Some(Vector2::new(c.x, c.y))
@@ -404,21 +389,13 @@ impl PointStage for WalkerBoxStage {
     }
 
     fn see_detections(&mut self, frame: u32, detections: &FrameDetections) {
-        self.measurements.see(frame, detections);
+        self.view.measurements.see(frame, detections);
     }
 
     fn finish(&mut self) -> Result<Vec<FramePoints>> {
         let mut frames = std::mem::take(&mut self.held);
         frames.sort_by_key(|f| f.frame);
-        let mut tracks: BTreeMap<u64, Vec<(usize, usize)>> = BTreeMap::new();
-        for (f, frame) in frames.iter().enumerate() {
-            for (i, p) in frame.points.iter().enumerate() {
-                if p.class == ObjectClass::Pedestrian {
-                    tracks.entry(p.id).or_default().push((f, i));
-                }
-            }
-        }
-        for at in tracks.values() {
+        for at in tracks(&frames, |p| p.class == ObjectClass::Pedestrian).values() {
             self.changed += self.reshape(&mut frames, at);
         }
         Ok(frames)

@@ -1,8 +1,9 @@
 use super::*;
 use crate::geometry::Point;
-use crate::track::frames_of;
+use crate::track::boxes_of as boxes;
 use crate::track_point::TrackPoint;
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};
+use std::collections::BTreeMap;
 
 /// A camera 8 m up at (0, −20) looking along `+y`, 0.25 rad down, f = 512 px, its principal
 /// point at the centre of 640 × 480 px: the ground homography of a view along a road.
@@ -54,22 +55,8 @@ fn run(
     dets: impl Fn(u32) -> Vec<BBox>,
 ) -> Result<(Vec<FramePoints>, usize)> {
     let mut stage = VehicleBoxStage::new(config, &calibration(), 640, 480)?;
-    for f in frames_of(points, n) {
-        stage.see_detections(
-            f.frame,
-            &crate::track::detections_of(&dets(f.frame), f.frame),
-        );
-        assert!(stage.push(f)?.is_empty(), "the stage holds every frame");
-    }
-    let out = stage.finish()?;
+    let out = crate::track::run_box_stage(&mut stage, points, n, dets)?;
     Ok((out, stage.changed()))
-}
-
-fn boxes(out: &[FramePoints], id: u64) -> Vec<BBox> {
-    out.iter()
-        .flat_map(|f| f.points.iter().filter(|p| p.id == id))
-        .map(|p| p.bbox)
-        .collect()
 }
 
 /// The vehicles seen through the camera recovered from a simulated oblique road's (and

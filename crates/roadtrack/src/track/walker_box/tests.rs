@@ -1,5 +1,5 @@
 use super::*;
-use crate::track::frames_of;
+use crate::track::boxes_of as boxes;
 use crate::track_point::TrackPoint;
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind, simulate_in_memory};
 
@@ -50,27 +50,14 @@ fn run_with(
     seen: &[(u32, BBox)],
 ) -> Result<(Vec<FramePoints>, usize)> {
     let mut stage = WalkerBoxStage::new(config, &calibration(), 640, 480)?;
-    assert!(stage.wants_detections() || seen.is_empty());
-    for f in 1..=n {
-        let boxes: Vec<BBox> = seen
-            .iter()
+    let dets = |f: u32| -> Vec<BBox> {
+        seen.iter()
             .filter(|(g, _)| *g == f)
             .map(|(_, b)| *b)
-            .collect();
-        stage.see_detections(f, &crate::track::detections_of(&boxes, f));
-    }
-    for f in frames_of(points, n) {
-        assert!(stage.push(f)?.is_empty(), "the stage holds every frame");
-    }
-    let out = stage.finish()?;
+            .collect()
+    };
+    let out = crate::track::run_box_stage(&mut stage, points, n, dets)?;
     Ok((out, stage.changed()))
-}
-
-fn boxes(out: &[FramePoints], id: u64) -> Vec<BBox> {
-    out.iter()
-        .flat_map(|f| f.points.iter().filter(|p| p.id == id))
-        .map(|p| p.bbox)
-        .collect()
 }
 
 /// The body seen through the camera recovered from a simulated crossing's calibration,
