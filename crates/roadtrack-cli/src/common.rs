@@ -228,8 +228,16 @@ pub fn load_config<T>(path: Option<&Path>) -> Result<T>
 where
     T: serde::de::DeserializeOwned + Default + roadtrack::config::Validate,
 {
+    load_flag_config(path, "--config")
+}
+
+/// [`load_config`] for the file of another flag, which its errors name.
+pub fn load_flag_config<T>(path: Option<&Path>, flag: &str) -> Result<T>
+where
+    T: serde::de::DeserializeOwned + Default + roadtrack::config::Validate,
+{
     match path {
-        Some(p) => roadtrack::config::load_toml(p).with_context(|| "reading --config"),
+        Some(p) => roadtrack::config::load_toml(p).with_context(|| format!("reading {flag}")),
         None => Ok(T::default()),
     }
 }

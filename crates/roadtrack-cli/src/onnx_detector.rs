@@ -363,7 +363,6 @@ impl OnnxArgs {
     /// The detector, loaded (`--detector onnx`).
     #[cfg(feature = "cnn")]
     pub fn spec(&self) -> Result<roadtrack::detect::DetectorSpec> {
-        use anyhow::Context as _;
         use roadtrack_cnn::detector::{
             Channels, DetrScores, Layout, OnnxDetector, OnnxDetectorConfig, Resize,
         };
@@ -372,10 +371,8 @@ impl OnnxArgs {
             &self.cnn_only(),
             "only with --detector cnn, not --detector onnx",
         )?;
-        let mut config: OnnxDetectorConfig = match self.onnx_config.as_deref() {
-            Some(p) => roadtrack::config::load_toml(p).context("reading --onnx-config")?,
-            None => OnnxDetectorConfig::default(),
-        };
+        let mut config: OnnxDetectorConfig =
+            crate::common::load_flag_config(self.onnx_config.as_deref(), "--onnx-config")?;
         if let Some(l) = self.layout {
             config.layout = match l {
                 LayoutArg::Auto => Layout::Auto,

@@ -1,6 +1,8 @@
 //! `roadtrack track`: run a tracking method over a video, image folder or MOT sequence.
 
-use crate::common::{DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config, report_skipped};
+use crate::common::{
+    DetectorArgs, FrameArgs, LifecycleArgs, Ui, load_config, load_flag_config, report_skipped,
+};
 use anyhow::{Context, Result};
 use roadtrack::analysis::ground::{GroundStage, OffGroundFilter};
 use roadtrack::analysis::kinematics::GroundPoint;
@@ -411,10 +413,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     if let (true, Some(cal), Some(path)) = (args.walker_boxes, &calibration, &args.calibration) {
         // Choice: after the smoothing, whose heights it fits (and whose centres it keeps
         // with `smooth_centres = false`).
-        let config: WalkerBoxConfig = match &args.walker_config {
-            Some(p) => roadtrack::config::load_toml(p).context("reading --walker-config")?,
-            None => WalkerBoxConfig::default(),
-        };
+        let config: WalkerBoxConfig =
+            load_flag_config(args.walker_config.as_deref(), "--walker-config")?;
         let stage = WalkerBoxStage::new(config, cal, info.width, info.height)
             .with_context(|| format!("--walker-boxes: {}", path.display()))?;
         stages.push(Box::new(stage));
@@ -422,10 +422,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
     if let (true, Some(cal), Some(path)) = (args.vehicle_boxes, &calibration, &args.calibration) {
         // Choice: after the smoothing, like the walkers' boxes: the stage matches the
         // tracks' final boxes to the detections and redraws them whole.
-        let config: VehicleBoxConfig = match &args.vehicle_config {
-            Some(p) => roadtrack::config::load_toml(p).context("reading --vehicle-config")?,
-            None => VehicleBoxConfig::default(),
-        };
+        let config: VehicleBoxConfig =
+            load_flag_config(args.vehicle_config.as_deref(), "--vehicle-config")?;
         let stage = VehicleBoxStage::new(config, cal, info.width, info.height)
             .with_context(|| format!("--vehicle-boxes: {}", path.display()))?;
         stages.push(Box::new(stage));
