@@ -653,3 +653,31 @@ fn bad_config_values_name_the_file_and_the_key() {
         assert!(!stderr(&o).contains("Config."), "{}", stderr(&o));
     }
 }
+
+/// A bad file given to a flag other than `--config` is reported under that flag's name.
+#[test]
+fn a_bad_detector_config_is_named_by_its_own_flag() {
+    let seq = fixture("tiny_sequence");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bad = write(
+        dir.path(),
+        "bad.toml",
+        "[background]\nthreshold_sigma = nan\n",
+    );
+    let o = run(&[
+        "track",
+        s(&seq),
+        "--method",
+        "relaxation",
+        "--detector-config",
+        s(&bad),
+    ]);
+    expect(
+        &o,
+        1,
+        &[
+            "reading --detector-config",
+            "bad.toml: background.threshold_sigma",
+        ],
+    );
+}

@@ -291,7 +291,8 @@ pub fn run(mut args: Args, ui: &Ui) -> Result<()> {
             if let Some(k) = args.max_missed_frames {
                 tracker.max_missed_frames = k;
             }
-            let detector: BackgroundDetectorConfig = load_config(args.detector_config.as_deref())?;
+            let detector: BackgroundDetectorConfig =
+                load_flag_config(args.detector_config.as_deref(), "--detector-config")?;
             MethodConfig::Relaxation {
                 tracker: Box::new(tracker),
                 detector: Box::new(detector),
