@@ -153,54 +153,13 @@ fn load_centernet_likelihood(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use roadtrack::class::ObjectClass;
     use roadtrack::detect::background::BackgroundDetector;
-    use roadtrack::frame::Frame;
     use roadtrack::io::SourceOptions;
     use roadtrack::track::filter::{FilterMethod, FilterTrackConfig, FilterTracker, FrameCount};
     use roadtrack::track::pipeline::run_frames;
     use roadtrack::track_point::TrackPoint;
-    use roadtrack_sim::external::{ExternalTrajectories, TrajectorySample};
-    use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
+    use roadtrack_sim::testkit::three_cars;
     use std::path::Path;
-
-    /// Three cars of distinct colours driving along the crossing scene's road.
-    fn three_cars(frames: u32) -> Result<Vec<Frame>> {
-        let cfg = SimConfig {
-            scene: SceneKind::Crossing,
-            view: ViewKind::Oblique,
-            frames,
-            ..Default::default()
-        };
-        let mut samples = Vec::new();
-        let cars = [
-            (1u64, -1.75, -34.0, [200u8, 30, 30]),
-            (2, 1.75, -14.0, [30, 60, 200]),
-            (3, -1.75, 6.0, [230, 200, 40]),
-        ];
-        for (id, y, x0, rgb) in cars {
-            for k in 0..=2 {
-                let t = f64::from(k) * f64::from(frames) / 10.0 / 2.0;
-                samples.push((
-                    id,
-                    TrajectorySample {
-                        time_s: t,
-                        class: ObjectClass::Car,
-                        x_m: x0 + 6.0 * t,
-                        y_m: y,
-                        heading_deg: 0.0,
-                        length_m: 4.5,
-                        width_m: 1.8,
-                        height_m: None,
-                        rgb: Some(rgb),
-                    },
-                ));
-            }
-        }
-        let ext = ExternalTrajectories::new(samples)?;
-        let sim = Simulation::from_trajectories(&cfg, 3, ext, Some(frames))?;
-        sim.map(|s| s.map(|s| s.frame)).collect()
-    }
 
     #[test]
     fn model_specs_are_checked_before_loading() -> Result<()> {
@@ -223,7 +182,7 @@ mod tests {
 
     #[test]
     fn a_cnn_likelihood_tracks_deterministically_at_any_thread_count() -> Result<()> {
-        let frames = three_cars(8)?;
+        let frames = three_cars(8)?.0;
         let model = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/fixtures/tiny_classifier.onnx"

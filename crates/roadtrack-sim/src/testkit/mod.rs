@@ -5,7 +5,9 @@
 //! - [`square_scene`]: red squares at constant velocity with first-frame detections (the
 //!   filters' tests and benchmark);
 //! - [`rectangles`]: textured rectangles with depth order and per-pixel truth (the MRF
-//!   tracker's occlusion scenarios).
+//!   tracker's occlusion scenarios);
+//! - [`three_cars`]: three cars of distinct colours on the simulated crossing (the filters'
+//!   and the CNN likelihood's tests).
 //!
 //! Whole traffic scenes come from the simulator itself ([`crate::simulate_in_memory`]).
 
@@ -13,12 +15,17 @@ pub mod rectangles;
 
 use image::{Rgb, RgbImage};
 use rand::RngExt as _;
+use roadtrack_core::class::ObjectClass;
 use roadtrack_core::detection::Detection;
+use roadtrack_core::error::Result;
 use roadtrack_core::frame::Frame;
 use roadtrack_core::geometry::{BBox, Point};
 use roadtrack_core::rng::{Stream, rng_for};
 
 pub use rectangles::{RectObjectTruth, RectTruth, SynthObject, SynthScene, SynthSequence};
+
+use crate::external::{ExternalTrajectories, TrajectorySample};
+use crate::{SceneKind, SimConfig, Simulation, TruthRow, ViewKind};
 
 /// Size of a [`square_scene`].
 #[derive(Debug, Clone, PartialEq)]
@@ -139,9 +146,87 @@ pub fn moving_boxes(width: u32, height: u32, n_frames: u32, n_objects: u32) -> V
         .collect()
 }
 
+/// Three cars of distinct colours (red, blue, yellow) driving along the oblique crossing's
+/// road at 6 m/s, 20 m apart, for `frames` frames (simulator seed 3): the frames and the
+/// truth. The yellow car is in view from the first frame, the blue one drives in at frame
+/// 6, the red one after frame 30.
+///
+/// # Errors
+/// As [`Simulation::from_trajectories`].
+pub fn three_cars(frames: u32) -> Result<(Vec<Frame>, Vec<TruthRow>)> {
+    let cfg = SimConfig {
+        scene: SceneKind::Crossing,
+        view: ViewKind::Oblique,
+        frames,
+        ..Default::default()
+    };
+    let mut samples = Vec::new();
+    let cars = [
+        (1u64, -1.75, -34.0, [200u8, 30, 30]),
+        (2, 1.75, -14.0, [30, 60, 200]),
+        (3, -1.75, 6.0, [230, 200, 40]),
+    ];
+    for (id, y, x0, rgb) in cars {
+        for k in 0..=2 {
+            let t = f64::from(k) * f64::from(frames) / 10.0 / 2.0;
+            samples.push((
+                id,
+                TrajectorySample {
+                    time_s: t,
+                    class: ObjectClass::Car,
+                    x_m: x0 + 6.0 * t,
+                    y_m: y,
+                    heading_deg: 0.0,
+                    length_m: 4.5,
+                    width_m: 1.8,
+                    height_m: None,
+                    rgb: Some(rgb),
+                },
+            ));
+        }
+    }
+    let ext = ExternalTrajectories::new(samples)?;
+    let sim = Simulation::from_trajectories(&cfg, 3, ext, Some(frames))?;
+    let (mut out, mut truth) = (Vec::new(), Vec::new());
+    for step in sim {
+        let step = step?;
+        out.push(step.frame);
+        truth.extend(step.truth);
+    }
+    Ok((out, truth))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn three_cars_drive_one_behind_another_at_six_metres_a_second() -> Result<()> {
+        let (frames, truth) = three_cars(30)?;
+        assert_eq!(frames.len(), 30);
+        let first = |id: u64| truth.iter().find(|r| r.id == id).map(|r| r.frame);
+        // Car 3 starts in view; car 2, 20 m behind it, drives in later; car 1, 40 m
+        // behind, is still out of view after 3 s.
+        assert_eq!([1, 2, 3].map(first), [None, Some(6), Some(1)]);
+        for r in &truth {
+            assert!((r.speed_mps - 6.0).abs() < 1e-9, "{r:?}");
+            let rgb = if r.id == 2 {
+                [30, 60, 200]
+            } else {
+                [230, 200, 40]
+            };
+            assert_eq!(r.colour_rgb, rgb);
+        }
+        let x = |f: u32| {
+            truth
+                .iter()
+                .find(|r| r.frame == f && r.id == 3)
+                .map(|r| r.x_m)
+        };
+        let (x1, x11) = (x(1).unwrap_or(f64::NAN), x(11).unwrap_or(f64::NAN));
+        assert!((x11 - x1 - 6.0).abs() < 1e-6, "{x1} -> {x11}");
+        Ok(())
+    }
 
     #[test]
     fn squares_start_where_their_detections_say_and_are_drawn_red() {

@@ -605,53 +605,8 @@ mod tests {
     use crate::detect::background::BackgroundDetector;
     use crate::track::filter::config::LikelihoodKind;
     use crate::track::pipeline::run_frames;
-    use roadtrack_sim::external::{ExternalTrajectories, TrajectorySample};
-    use roadtrack_sim::{SceneKind, SimConfig, Simulation, TruthRow, ViewKind};
-
-    /// Three cars of distinct colours driving along the crossing scene's road, well apart,
-    /// for `frames` frames: the simulator's frames and truth.
-    fn three_cars(frames: u32) -> Result<(Vec<Frame>, Vec<TruthRow>)> {
-        let cfg = SimConfig {
-            scene: SceneKind::Crossing,
-            view: ViewKind::Oblique,
-            frames,
-            ..Default::default()
-        };
-        let mut samples = Vec::new();
-        let cars = [
-            (1u64, -1.75, -34.0, [200u8, 30, 30]),
-            (2, 1.75, -14.0, [30, 60, 200]),
-            (3, -1.75, 6.0, [230, 200, 40]),
-        ];
-        for (id, y, x0, rgb) in cars {
-            for k in 0..=2 {
-                let t = f64::from(k) * f64::from(frames) / 10.0 / 2.0;
-                samples.push((
-                    id,
-                    TrajectorySample {
-                        time_s: t,
-                        class: ObjectClass::Car,
-                        x_m: x0 + 6.0 * t,
-                        y_m: y,
-                        heading_deg: 0.0,
-                        length_m: 4.5,
-                        width_m: 1.8,
-                        height_m: None,
-                        rgb: Some(rgb),
-                    },
-                ));
-            }
-        }
-        let ext = ExternalTrajectories::new(samples)?;
-        let sim = Simulation::from_trajectories(&cfg, 3, ext, Some(frames))?;
-        let (mut out, mut truth) = (Vec::new(), Vec::new());
-        for step in sim {
-            let step = step?;
-            out.push(step.frame);
-            truth.extend(step.truth);
-        }
-        Ok((out, truth))
-    }
+    use roadtrack_sim::testkit::three_cars;
+    use roadtrack_sim::{SceneKind, SimConfig, Simulation, ViewKind};
 
     /// Points and per-frame counts of `method` over `frames` (seed 7).
     fn run(
