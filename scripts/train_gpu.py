@@ -203,11 +203,18 @@ def reader(proc, q, chunk, stop):
         q.put(stack(items))
 
 
-def spawn(dumper, first, step, seed, per_episode, episodes=None, log=None):
+def spawn(dumper, first, step, seed, per_episode, episodes=None, log=None, mix=None):
+    """A dump_samples worker; `mix`: {"MOTORCYCLE_SHARE": s, "HEAVY_SHARE": s} for its
+    simulated vehicles (unset: the trainer's default mix)."""
     cmd = [dumper, str(first), str(step), str(seed), str(per_episode)]
     if episodes is not None:
         cmd.append(str(episodes))
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log or subprocess.DEVNULL, bufsize=1 << 20)
+    env = dict(os.environ)
+    for k in ("MOTORCYCLE_SHARE", "HEAVY_SHARE"):
+        env.pop(k, None)
+    env.update({k: str(v) for k, v in (mix or {}).items() if v is not None})
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log or subprocess.DEVNULL,
+                            bufsize=1 << 20, env=env)
 
 
 def losses(model, batch):
@@ -262,6 +269,12 @@ def main():
     ap.add_argument("--per-episode", type=int, default=64, help="crops per rendered episode")
     ap.add_argument("--sim-seed-base", type=int, default=20000)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--motorcycle-share", type=float, default=None,
+                    help="share of motorcycles among the training workers' simulated vehicles "
+                         "(as `roadtrack train --detector --motorcycle-share`); the held-out set "
+                         "keeps the default mix")
+    ap.add_argument("--heavy-share", type=float, default=None,
+                    help="the same for lorries and buses (`--heavy-share`)")
     ap.add_argument("--ring", type=int, default=65536, help="samples kept for drawing batches")
     ap.add_argument("--max-reuse", type=float, default=8.0, help="samples drawn per sample rendered, at most")
     ap.add_argument("--val-seed-base", type=int, default=100000)
@@ -321,7 +334,10 @@ def main():
         procs.append(p)
         threads.append(threading.Thread(target=reader, args=(p, vq, 64, stop), daemon=True))
     for k in range(a.workers):
-        p = spawn(a.dumper, a.sim_seed_base + k, a.workers, a.seed, a.per_episode, None, err)
+        # Choice: only the training workers get the mix; the held-out set keeps the default
+        # one, so networks trained on different mixes are scored on the same samples.
+        p = spawn(a.dumper, a.sim_seed_base + k, a.workers, a.seed, a.per_episode, None, err,
+                  {"MOTORCYCLE_SHARE": a.motorcycle_share, "HEAVY_SHARE": a.heavy_share})
         procs.append(p)
         threads.append(threading.Thread(target=reader, args=(p, q, 32, stop), daemon=True))
     for t in threads:
