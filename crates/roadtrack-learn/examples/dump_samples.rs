@@ -15,8 +15,8 @@
 //! Records as `roadtrack_learn::record` writes them.
 //!
 //! `MOTORCYCLE_SHARE=S`, `HEAVY_SHARE=S`: the simulated vehicles' mix, as `roadtrack train
-//! --detector --motorcycle-share S --heavy-share S` sets it (`DataConfig::motorcycle_share`,
-//! `heavy_share`); checked as the trainer checks them.
+//! --detector --motorcycle-share S --heavy-share S` sets it (`DataConfig::with_mix_from`);
+//! checked as the trainer checks them.
 //!
 //! `LOSS_OF=W.json` (or a learned detector's weights from `--weights-out`): also prints to
 //! stderr burn's losses of those weights on the samples written, per object centre, as
@@ -29,33 +29,6 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use roadtrack_learn::data::{DataConfig, TrainFrame, make_sample, render_episode};
 use roadtrack_learn::training_preprocessing;
-
-/// The trainer's data settings with the vehicle mix of `MOTORCYCLE_SHARE` and
-/// `HEAVY_SHARE`, when set; an unreadable or out-of-range share is an error naming it.
-fn data_config() -> Result<DataConfig, Box<dyn std::error::Error>> {
-    let share = |var: &str| -> Result<Option<f64>, Box<dyn std::error::Error>> {
-        match std::env::var(var) {
-            Ok(v) => {
-                Ok(Some(v.parse().map_err(|e| {
-                    format!("{var}: `{v}` is not a number ({e})")
-                })?))
-            }
-            Err(_) => Ok(None),
-        }
-    };
-    let data = DataConfig {
-        motorcycle_share: share("MOTORCYCLE_SHARE")?,
-        heavy_share: share("HEAVY_SHARE")?,
-        ..DataConfig::default()
-    };
-    roadtrack_learn::train::TrainConfig {
-        data,
-        ..Default::default()
-    }
-    .validate()
-    .map_err(|e| format!("MOTORCYCLE_SHARE / HEAVY_SHARE: {e}"))?;
-    Ok(data)
-}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -73,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(v) => v.parse()?,
         None => u64::MAX,
     };
-    let data = data_config()?;
+    let data = DataConfig::with_mix_from(|v| std::env::var(v).ok())?;
     let pool_frames = roadtrack_learn::train::TrainConfig::default().pool_frames;
     let prep = training_preprocessing();
     let mut crop_rng = Pcg64Mcg::seed_from_u64(seed ^ first.wrapping_mul(0xD1B5_4A32_D192_ED03));

@@ -127,6 +127,42 @@ impl Default for DataConfig {
     }
 }
 
+impl DataConfig {
+    /// The defaults with the vehicle mix read through `var` from `MOTORCYCLE_SHARE` and
+    /// `HEAVY_SHARE` ([`DataConfig::motorcycle_share`], [`DataConfig::heavy_share`]; unset:
+    /// the simulator's mix), checked as the trainer checks them
+    /// ([`TrainConfig::validate`](crate::train::TrainConfig::validate)). The GPU stage's
+    /// sample workers (`examples/dump_samples.rs`) take their mix so.
+    ///
+    /// # Errors
+    /// A value that is not a number, or a share the trainer refuses; the message names the
+    /// variable or field.
+    pub fn with_mix_from(var: impl Fn(&str) -> Option<String>) -> Result<Self> {
+        let share = |name: &str| -> Result<Option<f64>> {
+            var(name)
+                .map(|v| {
+                    v.trim().parse::<f64>().map_err(|e| {
+                        roadtrack::error::Error::Invalid(format!(
+                            "{name}: `{v}` is not a number ({e})"
+                        ))
+                    })
+                })
+                .transpose()
+        };
+        let data = Self {
+            motorcycle_share: share("MOTORCYCLE_SHARE")?,
+            heavy_share: share("HEAVY_SHARE")?,
+            ..Self::default()
+        };
+        crate::train::TrainConfig {
+            data,
+            ..Default::default()
+        }
+        .validate()?;
+        Ok(data)
+    }
+}
+
 fn scale(rng: &mut impl rand::Rng, lo: f64, hi: f64) -> f64 {
     rng.random_range(lo..hi)
 }

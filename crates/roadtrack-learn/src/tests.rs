@@ -615,3 +615,33 @@ fn sample_records_give_back_the_sample() -> Result<()> {
     );
     Ok(())
 }
+
+#[test]
+fn the_sample_workers_mix_is_read_and_checked_as_the_trainer_checks_it() -> Result<()> {
+    let env = |pairs: &'static [(&'static str, &'static str)]| {
+        move |k: &str| {
+            pairs
+                .iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| (*v).to_string())
+        }
+    };
+    assert_eq!(DataConfig::with_mix_from(env(&[]))?, DataConfig::default());
+    let d =
+        DataConfig::with_mix_from(env(&[("MOTORCYCLE_SHARE", "0.3"), ("HEAVY_SHARE", " 0.2")]))?;
+    assert_eq!((d.motorcycle_share, d.heavy_share), (Some(0.3), Some(0.2)));
+    for (pairs, named) in [
+        (&[("MOTORCYCLE_SHARE", "abc")][..], "MOTORCYCLE_SHARE"),
+        (&[("HEAVY_SHARE", "1")][..], "heavy_share"),
+        (
+            &[("MOTORCYCLE_SHARE", "0.6"), ("HEAVY_SHARE", "0.5")][..],
+            "motorcycle_share/heavy_share",
+        ),
+    ] {
+        let err = DataConfig::with_mix_from(env(pairs))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(named), "{named}: {err}");
+    }
+    Ok(())
+}
