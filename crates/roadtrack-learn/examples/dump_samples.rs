@@ -46,7 +46,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(v) => v.parse()?,
         None => u64::MAX,
     };
-    let data = DataConfig::with_mix_from(|v| std::env::var(v).ok())?;
+    let data = match DataConfig::with_mix_from(|v| std::env::var(v).ok()) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("dump_samples: {e}");
+            std::process::exit(1);
+        }
+    };
     let pool_frames = roadtrack_learn::train::TrainConfig::default().pool_frames;
     let prep = training_preprocessing();
     let mut crop_rng = Pcg64Mcg::seed_from_u64(seed ^ first.wrapping_mul(0xD1B5_4A32_D192_ED03));
