@@ -323,6 +323,13 @@ def main():
         models.append({"name": name, "net": m, "opt": opt, "lr": float(lr), "run": [0.0, 0.0, 0.0]})
         say(f"model {name}: shape {m.shape}, {n_w} weights, from {init}, peak lr {lr}")
 
+    mix = {"MOTORCYCLE_SHARE": a.motorcycle_share, "HEAVY_SHARE": a.heavy_share}
+    # The dumper checks the mix as the trainer does: ask it once (no episode) before
+    # starting workers that would otherwise die one by one behind the queue.
+    check = spawn(a.dumper, 0, 1, 0, 1, 0, subprocess.PIPE, mix)
+    _, why = check.communicate()
+    if check.returncode != 0:
+        sys.exit(why.decode(errors="replace").strip() or f"{a.dumper} failed")
     stop = threading.Event()
     q = queue.Queue(maxsize=256)
     vq = queue.Queue()
@@ -337,7 +344,7 @@ def main():
         # Choice: only the training workers get the mix; the held-out set keeps the default
         # one, so networks trained on different mixes are scored on the same samples.
         p = spawn(a.dumper, a.sim_seed_base + k, a.workers, a.seed, a.per_episode, None, err,
-                  {"MOTORCYCLE_SHARE": a.motorcycle_share, "HEAVY_SHARE": a.heavy_share})
+                  mix)
         procs.append(p)
         threads.append(threading.Thread(target=reader, args=(p, q, 32, stop), daemon=True))
     for t in threads:
