@@ -1,7 +1,7 @@
 //! End-to-end tests of `roadtrack track --vehicle-boxes`.
 
 mod common;
-use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation};
+use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation, write_toml};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::path::{Path, PathBuf};
@@ -91,15 +91,13 @@ fn vehicle_boxes_bring_noisy_car_boxes_to_the_truth() {
         std::fs::read(&drawn).expect("read"),
         std::fs::read(&one).expect("read")
     );
-    let long = dir.path().join("long.toml");
-    std::fs::write(&long, "car_m = [6.0, 1.78, 1.45]\n").expect("write");
-    let long = long.to_str().expect("utf-8");
+    let long = write_toml(dir.path(), "long.toml", "car_m = [6.0, 1.78, 1.45]\n");
     let on_long = [
         "--calibration",
         cal,
         "--vehicle-boxes",
         "--vehicle-config",
-        long,
+        &long,
     ];
     let longer = track_relaxation(&seq, &dets, &on_long, "2", dir.path().join("d.txt"));
     let area = |p: &Path| mot_rows(p).iter().map(|r| r[4] * r[5]).sum::<f64>();

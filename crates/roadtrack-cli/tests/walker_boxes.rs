@@ -1,7 +1,7 @@
 //! End-to-end tests of `roadtrack track --walker-boxes`.
 
 mod common;
-use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation};
+use common::{box_stage_needs_perspective, mot_iou, mot_rows, track_relaxation, write_toml};
 
 use roadtrack_sim::{SceneKind, SimConfig, ViewKind};
 use std::collections::{BTreeMap, BTreeSet};
@@ -130,15 +130,13 @@ fn walker_boxes_give_walkers_the_width_of_their_body() {
         std::fs::read(&one).expect("read")
     );
     // A broader body (--walker-config) gives broader boxes, their heights kept.
-    let broad = dir.path().join("broad.toml");
-    std::fs::write(&broad, "depth_m = 0.39\nwidth_m = 0.6\n").expect("write");
-    let broad = broad.to_str().expect("utf-8");
+    let broad = write_toml(dir.path(), "broad.toml", "depth_m = 0.39\nwidth_m = 0.6\n");
     let on_broad = [
         "--calibration",
         cal,
         "--walker-boxes",
         "--walker-config",
-        broad,
+        &broad,
     ];
     let wide = track_relaxation(&seq, &dets, &on_broad, "2", dir.path().join("d.txt"));
     let sums = |p: &Path| {
@@ -167,15 +165,13 @@ fn walker_boxes_take_their_centres_from_the_walk() {
     let dets = guessed_walkers(&seq, dir.path().join("dets.csv"), true);
     let cal = seq.join("calibration.toml");
     let cal = cal.to_str().expect("utf-8");
-    let kept = dir.path().join("kept.toml");
-    std::fs::write(&kept, "smooth_centres = false\n").expect("write");
-    let kept = kept.to_str().expect("utf-8");
+    let kept = write_toml(dir.path(), "kept.toml", "smooth_centres = false\n");
     let flags = [
         "--calibration",
         cal,
         "--walker-boxes",
         "--walker-config",
-        kept,
+        &kept,
     ];
     let tracker = track_relaxation(&seq, &dets, &flags, "2", dir.path().join("a.txt"));
     let on = ["--calibration", cal, "--walker-boxes"];

@@ -55,6 +55,13 @@ pub fn track_relaxation(
     track_ok(seq, &args, threads, out)
 }
 
+/// Writes `text` to `dir/name` (a settings file for a flag); returns its path as text.
+pub fn write_toml(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write");
+    path.to_str().expect("utf-8").to_string()
+}
+
 /// The rows of a MOT file (`gt.txt`, a tracks file) as numbers.
 pub fn mot_rows(path: &Path) -> Vec<Vec<f64>> {
     std::fs::read_to_string(path)
