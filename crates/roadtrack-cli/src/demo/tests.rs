@@ -82,27 +82,41 @@ fn demo_filters_read_the_video_config() -> Result<()> {
     Ok(())
 }
 
-/// One whole signal cycle fits the default demo.
+/// The demo's sequence of `frames` frames (seed 0) in a temporary folder, its calibration,
+/// and the learned detector's flags.
+#[cfg(feature = "cnn")]
+fn cnn_demo_sequence(
+    frames: u32,
+) -> Result<(tempfile::TempDir, PathBuf, Calibration, DetectorArgs)> {
+    let dir = tempfile::tempdir()?;
+    let seq = dir.path().join("sequence");
+    roadtrack_sim::simulate(
+        &demo_sim_config(frames, DEFAULT_FPS),
+        0,
+        &seq,
+        &mut |_, _| {},
+    )?;
+    let calibration = Calibration::load(&seq.join("calibration.toml"))?;
+    let args = DetectorArgs {
+        detector: Some(crate::common::DetectorArg::Cnn),
+        ..Default::default()
+    };
+    Ok((dir, seq, calibration, args))
+}
+
 /// `--detector cnn`: the detections found once, beside the readers, are what each
 /// method's own detector finds, frame by frame, whichever runs ahead; the background
 /// detector is not shared.
 #[cfg(feature = "cnn")]
 #[test]
 fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
-    use crate::common::DetectorArg;
     use roadtrack::detect::Detector as _;
-    let dir = tempfile::tempdir()?;
-    let seq = dir.path().join("sequence");
-    roadtrack_sim::simulate(&demo_sim_config(12, DEFAULT_FPS), 0, &seq, &mut |_, _| {})?;
+    let (_dir, seq, calibration, detector) = cnn_demo_sequence(12)?;
     let cfg = DemoConfig {
-        detector: DetectorArgs {
-            detector: Some(DetectorArg::Cnn),
-            ..Default::default()
-        },
+        detector,
         ..Default::default()
     };
     let options = SourceOptions::default();
-    let calibration = Calibration::load(&seq.join("calibration.toml"))?;
     let mut shared = shared_detector(&cfg, &seq, &calibration)?.context("cnn runs once")?;
     let found = std::sync::Arc::new(Found::default());
     // The reader starts first and waits for every frame.
@@ -154,15 +168,7 @@ fn the_demo_detects_once_what_each_method_would_detect() -> Result<()> {
 #[cfg(feature = "cnn")]
 #[test]
 fn the_demo_zooms_the_far_rows_by_its_calibration() -> Result<()> {
-    use crate::common::DetectorArg;
-    let dir = tempfile::tempdir()?;
-    let seq = dir.path().join("sequence");
-    roadtrack_sim::simulate(&demo_sim_config(3, DEFAULT_FPS), 0, &seq, &mut |_, _| {})?;
-    let calibration = Calibration::load(&seq.join("calibration.toml"))?;
-    let mut args = DetectorArgs {
-        detector: Some(DetectorArg::Cnn),
-        ..Default::default()
-    };
+    let (_dir, seq, calibration, mut args) = cnn_demo_sequence(3)?;
     args.onnx.no_flip = true;
     args.onnx.zoom_small = Some(32.0);
     let cfg = DemoConfig {
