@@ -274,7 +274,8 @@ fn mrf(cases: u32) {
 
 /// The committed MRF configs load, validate and differ from the default in the fields
 /// their comments name, and only there: the aerial file is the junction file as it was
-/// before 2026-11-30 (25 frames, unmatched objects written) with a 2 px distance gate.
+/// before 2026-11-30 (25 frames, unmatched objects written, no lowest match score) with a
+/// 2 px distance gate.
 #[test]
 fn committed_mrf_configs_load() {
     let load = |name| load_committed(name, MrfConfig::validate);
@@ -284,16 +285,19 @@ fn committed_mrf_configs_load() {
         (
             junction.max_missed_frames,
             junction.appearance_scale,
-            junction.write_unmatched
+            junction.write_unmatched,
+            junction.min_match_score
         ),
-        (40, 20.0, false)
+        (40, 20.0, false, 1.0)
     );
     assert!(default.write_unmatched);
+    assert_eq!(default.min_match_score, 0.0);
     assert_eq!(
         MrfConfig {
             max_missed_frames: default.max_missed_frames,
             appearance_scale: default.appearance_scale,
             write_unmatched: default.write_unmatched,
+            min_match_score: default.min_match_score,
             ..junction.clone()
         },
         default
@@ -309,6 +313,7 @@ fn committed_mrf_configs_load() {
             gate_px: junction.gate_px,
             max_missed_frames: junction.max_missed_frames,
             write_unmatched: junction.write_unmatched,
+            min_match_score: junction.min_match_score,
             ..aerial
         },
         junction

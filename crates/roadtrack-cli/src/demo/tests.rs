@@ -67,6 +67,8 @@ fn demo_mrf_reads_the_intersection_config() -> Result<()> {
     assert!(MrfConfig::default().write_unmatched);
     assert_eq!(built_in.appearance_scale, 20.0);
     assert_ne!(MrfConfig::default().appearance_scale, 20.0);
+    assert_eq!(built_in.min_match_score, 1.0);
+    assert_eq!(MrfConfig::default().min_match_score, 0.0);
     Ok(())
 }
 

@@ -75,6 +75,9 @@ pub struct Weights {
     pub gate_width_factor: f64,
     /// Optimal (Hungarian, maximum total score) instead of greedy one-to-one matching.
     pub optimal: bool,
+    /// Lowest total score (the terms above plus `extra`) at which a box may continue an
+    /// object; 0 = any candidate pair may match.
+    pub min_score: f64,
 }
 
 impl Weights {
@@ -86,6 +89,7 @@ impl Weights {
         gate_px: 0.0,
         gate_width_factor: 0.0,
         optimal: false,
+        min_score: 0.0,
     };
 
     /// The distance gate for a box of width `width`, px.
@@ -125,7 +129,8 @@ impl BoxOutcome {
 /// does not cover at all is a candidate only when that box IoU reaches
 /// `weights.revive_iou` or the box lies within its distance gate. `extra(box, id)` is added
 /// to every candidate's score (the appearance term); where it is `None` the box may not
-/// continue that object (the class gate). New objects take `*next_id` onwards.
+/// continue that object (the class gate). A pair whose total score is under
+/// `weights.min_score` is not a candidate. New objects take `*next_id` onwards.
 ///
 /// Returns one outcome per box, in the boxes' order.
 // Choice: one-to-one matching, by default of maximum total score (Hungarian; greedy by
@@ -141,6 +146,11 @@ impl BoxOutcome {
 // Choice: a block covered by two boxes keeps its id if that id is one of the two boxes'
 // objects (eq. 5 decided it in the sampler, e.g. which of two overlapping objects is in
 // front); otherwise it goes to the box whose centre is nearest in units of the box size.
+// Choice: with `weights.min_score` a box whose best pair scores under it starts a new
+// object instead of continuing one: without it, an object that lost its boxes takes any box
+// within its gate that no other object claims, however far from where it was expected and
+// however unlike it in colour (a queued car's id onto a car passing in front, a walker's
+// onto the next walker in). Numbers at `MrfConfig::min_match_score`.
 // Choice: a matched object's blocks outside every box are cleared: with a box for the
 // object, blocks outside it are background or a neighbour's texture dragged along.
 pub fn apply_boxes(
@@ -204,6 +214,7 @@ pub fn apply_boxes(
             }
         }
     }
+    pairs.retain(|p| p.0 >= weights.min_score);
     let chosen = if weights.optimal {
         optimal_pairs(&pairs, boxes.len())
     } else {
@@ -495,6 +506,7 @@ mod tests {
         gate_px: 8.0,
         gate_width_factor: 1.0,
         optimal: true,
+        min_score: 0.0,
     };
 
     #[test]
@@ -516,6 +528,40 @@ mod tests {
         let mut ids = vec![NO_OBJECT; g.len()];
         let out = apply(&mut ids, &g, &[far], &expected, NEW, &mut next);
         assert_eq!(out, vec![BoxOutcome::Started(10)]);
+    }
+
+    #[test]
+    fn a_pair_under_the_lowest_score_starts_a_new_object() {
+        let g = grid();
+        // A 5 × 7 px box 6 px right of where object 5 was expected: no shared block, box
+        // IoU 0, within the gate (8 px): score 2 · (1 − 6 / 8) = 0.5.
+        let b = BBox::new(86.0, 80.0, 5.0, 7.0);
+        let expected = [(5, BBox::new(80.0, 80.0, 5.0, 7.0))];
+        let run = |min_score: f64, looks: f64, next: &mut ObjectId| {
+            let mut ids = vec![NO_OBJECT; g.len()];
+            let w = Weights { min_score, ..NEW };
+            apply_boxes(&mut ids, &g, &[b], &expected, w, &|_, _| Some(looks), next)
+        };
+        let mut next = 9;
+        assert_eq!(run(0.0, 0.0, &mut next), vec![BoxOutcome::Revived(5)]);
+        assert_eq!(run(0.4, 0.0, &mut next), vec![BoxOutcome::Revived(5)]);
+        assert_eq!(run(1.0, 0.0, &mut next), vec![BoxOutcome::Started(9)]);
+        // The same box looking like the object (appearance term 0.6): 1.1, it continues it.
+        assert_eq!(run(1.0, 0.6, &mut next), vec![BoxOutcome::Revived(5)]);
+        // A box covering the object's blocks is held to the same floor.
+        let mut ids = vec![NO_OBJECT; g.len()];
+        fill(&mut ids, &g, 2..5, 2..5, 7);
+        let w = Weights {
+            min_score: 1.0,
+            ..NEW
+        };
+        let big = BBox::new(16.0, 16.0, 96.0, 96.0); // 12 × 12 blocks over object 7's 3 × 3
+        let out = apply(&mut ids, &g, &[big], &[], w, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Started(10)]);
+        let mut ids = vec![NO_OBJECT; g.len()];
+        fill(&mut ids, &g, 2..5, 2..5, 7);
+        let out = apply(&mut ids, &g, &[big], &[], NEW, &mut next);
+        assert_eq!(out, vec![BoxOutcome::Matched(7)]);
     }
 
     #[test]

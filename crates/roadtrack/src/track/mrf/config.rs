@@ -172,6 +172,17 @@ pub struct MrfConfig {
     ///
     /// [`ObjectClass::may_be_same_object`]: crate::class::ObjectClass::may_be_same_object
     pub keep_classes_apart: bool,
+    /// With detections: lowest score of a box and an object (the sum of the terms above:
+    /// block IoU, box IoU, distance, appearance) at which the box may continue the object;
+    /// a box whose every pair scores less starts an object of its own. Default 0: any
+    /// candidate pair may match (before 2026-12-01). configs/mrf-intersection.toml sets 1.
+    // Choice: 1, in the junction file only (docs/EXPERIMENTS.md "A lowest score for a box
+    // to continue an object"): the MRF on the demo's boxes, 14 seeds, HOTA 0.578 → 0.583
+    // (better on 12 of 14), turning error 24.1 → 21.1 %; the oblique crossing's pipeline
+    // from video, held-out seeds 4–6 0.619 → 0.633, seeds 1–3 0.616 → 0.644; the oblique
+    // intersection's 0.715 → 0.718 and 0.708 → 0.715; no sequence lower. 0.75 / 1.25 / 1.5
+    // on the crossing's seeds 4–6: 0.626 / 0.628 / 0.626.
+    pub min_match_score: f64,
     /// With detections: an object no box matched whose expected box lies less than this
     /// fraction inside the frame has left the view and ends at once, before
     /// `max_missed_frames`. Default 0.5; 0 = off.
@@ -264,6 +275,7 @@ impl Default for MrfConfig {
             gate_px: 8.0,
             gate_width_factor: 1.0,
             keep_classes_apart: true,
+            min_match_score: 0.0,
             end_outside_fraction: 0.5,
             write_unmatched: true,
         }
@@ -304,6 +316,7 @@ impl MrfConfig {
             ("gate_width_factor", self.gate_width_factor),
             ("appearance_weight", self.appearance_weight),
             ("appearance_scale", self.appearance_scale),
+            ("min_match_score", self.min_match_score),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return err(field, format!("must be finite and ≥ 0, found {v}"));

@@ -488,6 +488,7 @@ impl MrfTracker {
                         gate_px: self.config.gate_px,
                         gate_width_factor: self.config.gate_width_factor,
                         optimal: self.config.association == Association::Optimal,
+                        min_score: self.config.min_match_score,
                     },
                     &extra,
                     &mut self.next_id,
