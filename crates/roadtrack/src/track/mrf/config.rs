@@ -178,7 +178,7 @@ pub struct MrfConfig {
     /// candidate pair may match (before 2026-12-01). configs/mrf-intersection.toml sets 1.
     // Choice: 1, in the junction file only (docs/EXPERIMENTS.md "A lowest score for a box
     // to continue an object"): the MRF on the demo's boxes, 14 seeds, HOTA 0.578 → 0.583
-    // (better on 12 of 14), turning error 24.1 → 21.1 %; the oblique crossing's pipeline
+    // (better on 11 of 14), turning error 24.1 → 21.1 %; the oblique crossing's pipeline
     // from video, held-out seeds 4–6 0.619 → 0.633, seeds 1–3 0.616 → 0.644; the oblique
     // intersection's 0.715 → 0.718 and 0.708 → 0.715; no sequence lower. 0.75 / 1.25 / 1.5
     // on the crossing's seeds 4–6: 0.626 / 0.628 / 0.626.
