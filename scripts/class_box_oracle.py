@@ -7,7 +7,7 @@ difference is what that part of the tracking costs.
 
     python3 scripts/class_box_oracle.py SEQ TRACKS.txt OUT.txt [--class 6] \\
         [--match best-iou|one-to-one|centre] [--min-iou 0.1] [--radius 1.0] \\
-        [--replace box|centre|size|id] [--max-visibility 1.0]
+        [--replace box|centre|size|id] [--max-visibility 1.0] [--max-gap N]
 
 --class: only truth boxes of this MOT17 class (1 pedestrian, 3 car, 5 motorcycle, 6 lorry
 or bus); every class without it.
@@ -20,6 +20,9 @@ overlapping at all).
 size, centre kept; `id` the track id (the truth's id, boxes kept; unmatched boxes keep
 their track's id, moved out of the truth's range): perfect association of these boxes.
 --max-visibility: only truth boxes less visible than this (e.g. 0.5: the occluded ones).
+--max-gap: with `--replace id`, a truth id that has no box for more than N frames takes a
+new id after the gap: perfect association by a tracker that forgets an object after N
+frames without a box (the MRF's `max_missed_frames`).
 Not part of the test suite; Python 3 (and scripts/detection_compare.py beside it), scipy
 for the one-to-one matches.
 """
@@ -83,6 +86,22 @@ def matches(rows, truth, a):
     return {i: truth[j] for i, j in zip(r, c) if ok(cost[i][j])}
 
 
+def split_at_gaps(ids, lines, max_gap, next_id):
+    """`ids` (row index -> truth id) with each truth id renumbered after every stretch of
+    more than `max_gap` frames in which no row carries it; new ids from `next_id`."""
+    by_id = defaultdict(list)
+    for k, i in ids.items():
+        by_id[i].append((int(lines[k][0]), k))
+    out = {}
+    for i, rows in sorted(by_id.items()):
+        cur, last = i, None
+        for frame, k in sorted(rows):
+            if last is not None and frame - last > max_gap + 1:
+                cur, next_id = next_id, next_id + 1
+            out[k], last = cur, frame
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("seq")
@@ -94,7 +113,10 @@ def main():
     ap.add_argument("--radius", type=float, default=1.0)
     ap.add_argument("--replace", choices=["box", "centre", "size", "id"], default="box")
     ap.add_argument("--max-visibility", type=float, default=1.0)
+    ap.add_argument("--max-gap", type=int)
     a = ap.parse_args()
+    if a.max_gap is not None and a.replace != "id":
+        ap.error("--max-gap needs --replace id")
     gt = read_gt(f"{a.seq}/gt/gt.txt")
     lines = []
     frames = defaultdict(list)
@@ -113,11 +135,15 @@ def main():
         ]
         for i, t in matches([lines[k] for k in idx], truth, a).items():
             pair[idx[i]] = t
+    ids = {k: t[3] for k, t in pair.items()}
+    if a.max_gap is not None:
+        ids = split_at_gaps(ids, lines, a.max_gap, first_free + max(
+            (int(c[1]) for c in lines), default=0) + 1)
     with open(a.out, "w") as out:
         for k, c in enumerate(lines):
             t = pair.get(k)
             if a.replace == "id":
-                c[1] = str(t[3] if t is not None else first_free + int(c[1]))
+                c[1] = str(ids[k] if k in ids else first_free + int(c[1]))
             elif t is not None and a.replace == "box":
                 c[2:6] = [f"{v:.3f}" for v in t[0]]
             elif t is not None:

@@ -16,11 +16,17 @@ arm different from the last. Each change from track A to track B on a trip is co
 and by what became of A: `A->other` (A went on covering another object) or `A ended`.
 
     python3 scripts/trip_breaks.py DEMO_DIR [--methods relaxation,mrf,pf,phd] [--iou 0.3]
-        [--detail]
+        [--detail] [--counts]
 
 DEMO_DIR is the output of `roadtrack demo --no-video -o DEMO_DIR`. Prints, per method, the
 changes by kind and the trips covered by one track from end to end; with --detail, every
-trip's changes. Not part of the test suite; needs only Python 3 (run from anywhere).
+trip's changes. With --counts, also which truth trips the tracks count (docs/EXPERIMENTS.md
+"What is left of the turning error, with the floor"): a track's trip is its first and last
+arm from its ground positions (METHOD/trajectories.csv, no stitching); it counts the trip
+of the truth object it covers in most frames when that object made the same movement and
+no other track counted it; per class, the truth trips counted and missed, and the tracks'
+trips that count none (a wrong movement, an object that made no trip, a second count).
+Not part of the test suite; needs only Python 3 (run from anywhere).
 """
 import argparse
 import collections
@@ -97,6 +103,39 @@ def breaks(trip_id, cover, owner, first):
     return out
 
 
+def track_trips(path, arm_m):
+    """{track: movement} from a trajectories CSV (frame, id, x_m, y_m)."""
+    rows = collections.defaultdict(list)
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            if r["x_m"] and r["y_m"]:
+                rows[int(r["id"])].append((int(r["frame"]), float(r["x_m"]), float(r["y_m"])))
+    out = {}
+    for t, rs in rows.items():
+        arms = [a for a in (arm(x, y, arm_m) for _, x, y in sorted(rs)) if a]
+        if arms and arms[0] != arms[-1]:
+            out[t] = arms[0] + "→" + arms[-1]
+    return out
+
+
+def counted_trips(trips, moves, owner):
+    """Per class [truth trips, counted], and the false trips by kind."""
+    per = collections.defaultdict(lambda: [0, 0])
+    for _, cls in trips.values():
+        per[cls][0] += 1
+    done, false = set(), collections.Counter()
+    for t, mv in sorted(moves.items()):
+        cov = collections.Counter(owner[t].values()).most_common(1)
+        g = cov[0][0] if cov else None
+        if g in trips and trips[g][0] == mv and g not in done:
+            done.add(g)
+            per[trips[g][1]][1] += 1
+        else:
+            false["second count" if g in done and trips[g][0] == mv
+                  else "wrong movement" if g in trips else "no trip"] += 1
+    return per, false
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("demo")
@@ -104,6 +143,7 @@ def main():
     ap.add_argument("--iou", type=float, default=0.3)
     ap.add_argument("--arm-m", type=float, default=12.0)
     ap.add_argument("--detail", action="store_true")
+    ap.add_argument("--counts", action="store_true")
     a = ap.parse_args()
     seq = os.path.join(a.demo, "sequence")
     trips = truth_trips(os.path.join(seq, "truth.csv"), a.arm_m)
@@ -127,6 +167,12 @@ def main():
               + f" | {sum(count.values())} | {whole} / {len(trips)} |")
         if a.detail:
             print("\n".join(lines))
+        if a.counts:
+            moves = track_trips(os.path.join(a.demo, m, "trajectories.csv"), a.arm_m)
+            per, false = counted_trips(trips, moves, owner)
+            print(f"  {m} counts: " + ", ".join(
+                f"{c} {n[1]}/{n[0]}" for c, n in sorted(per.items()))
+                + f"; false trips: {sum(false.values())} " + str(dict(sorted(false.items()))))
 
 
 if __name__ == "__main__":
