@@ -55,12 +55,13 @@ def truth_trips(path, arm_m):
         for r in csv.DictReader(f):
             rows[int(r["id"])].append((int(r["frame"]), float(r["x_m"]), float(r["y_m"])))
             cls[int(r["id"])] = r["class"]
-    trips = {}
-    for i, rs in rows.items():
-        arms = [a for a in (arm(x, y, arm_m) for _, x, y in sorted(rs)) if a]
-        if arms and arms[0] != arms[-1]:
-            trips[i] = (arms[0] + "→" + arms[-1], cls[i])
-    return trips
+    return {i: (mv, cls[i]) for i, rs in rows.items() if (mv := movement(rs, arm_m))}
+
+
+def movement(rows, arm_m):
+    """`A→B` for (frame, x_m, y_m) rows whose first arm A differs from their last arm B."""
+    arms = [a for a in (arm(x, y, arm_m) for _, x, y in sorted(rows)) if a]
+    return arms[0] + "→" + arms[-1] if arms and arms[0] != arms[-1] else None
 
 
 def read_mot(path):
@@ -110,12 +111,7 @@ def track_trips(path, arm_m):
         for r in csv.DictReader(f):
             if r["x_m"] and r["y_m"]:
                 rows[int(r["id"])].append((int(r["frame"]), float(r["x_m"]), float(r["y_m"])))
-    out = {}
-    for t, rs in rows.items():
-        arms = [a for a in (arm(x, y, arm_m) for _, x, y in sorted(rs)) if a]
-        if arms and arms[0] != arms[-1]:
-            out[t] = arms[0] + "→" + arms[-1]
-    return out
+    return {t: mv for t, rs in rows.items() if (mv := movement(rs, arm_m))}
 
 
 def counted_trips(trips, moves, owner):
